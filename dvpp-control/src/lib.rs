@@ -1,0 +1,3 @@
+//! The DVPP control design as a library shared by the FMUs and the tests.
+
+pub mod phasor;

@@ -1,0 +1,573 @@
+//! The bodies of the FMI 2.0 C functions, generic over the model: pointer checks, state masks,
+//! status escalation into the Error/Fatal states, and panic containment.
+
+use crate::describe::Config;
+use crate::ffi::*;
+use crate::instance::{model_tag, Call, Instance, Phase, Snapshot};
+use crate::log::Logger;
+use crate::model::{Model, Value};
+use crate::Status;
+use model_description::BaseType;
+use std::ffi::CStr;
+use std::os::raw::c_char;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+
+fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
+    payload
+        .downcast_ref::<&str>()
+        .map(|s| s.to_string())
+        .or_else(|| payload.downcast_ref::<String>().cloned())
+        .unwrap_or_else(|| "unknown panic".into())
+}
+
+/// Run `f` on the instance behind `c` if `call` is legal in its state; contain panics.
+///
+/// # Safety
+/// `c` must be null or a pointer returned by [`instantiate`] for the same model and not freed.
+unsafe fn with_instance<M: Model>(
+    c: fmi2Component,
+    call: Call,
+    f: impl FnOnce(&mut Instance<M>) -> Status,
+) -> Status {
+    if c.is_null() {
+        return Status::Error;
+    }
+    let inst = &mut *(c as *mut Instance<M>);
+    if inst.tag != model_tag::<M>() {
+        return Status::Error;
+    }
+    let phase = inst.core.phase;
+    if !call.allowed_in(phase) {
+        let status = inst.error(format!(
+            "{}: illegal call sequence in state {phase:?}",
+            call.name()
+        ));
+        if phase != Phase::Fatal {
+            inst.core.phase = Phase::Error;
+        }
+        return status;
+    }
+    match catch_unwind(AssertUnwindSafe(|| f(&mut *inst))) {
+        Ok(status) => {
+            match status {
+                Status::Error => inst.core.phase = Phase::Error,
+                Status::Fatal => inst.core.phase = Phase::Fatal,
+                _ => {}
+            }
+            status
+        }
+        Err(payload) => {
+            inst.core.phase = Phase::Fatal;
+            let text = panic_text(payload.as_ref());
+            // The logger itself must not unwind into the host either.
+            let _ = catch_unwind(AssertUnwindSafe(|| {
+                inst.logger.log(
+                    Status::Fatal,
+                    &format!("{}: internal error contained: {text}", call.name()),
+                )
+            }));
+            Status::Fatal
+        }
+    }
+}
+
+unsafe fn c_str<'a>(p: *const c_char) -> Option<&'a str> {
+    if p.is_null() {
+        None
+    } else {
+        CStr::from_ptr(p).to_str().ok()
+    }
+}
+
+/// Decode an FMI resource location (`file:///a%20b`, `file:/a`, `file://localhost/a`, or a plain
+/// path) into a path.
+pub fn resource_path(uri: &str) -> Result<PathBuf, String> {
+    let rest = if let Some(r) = uri.strip_prefix("file://") {
+        if let Some(r) = r.strip_prefix("localhost/") {
+            format!("/{r}")
+        } else if r.starts_with('/') {
+            r.to_owned()
+        } else {
+            return Err(format!("resource location '{uri}' names a remote host"));
+        }
+    } else if let Some(r) = uri.strip_prefix("file:") {
+        r.to_owned()
+    } else if uri.contains("://") {
+        return Err(format!("resource location '{uri}' is not a file URI"));
+    } else {
+        uri.to_owned()
+    };
+    let bytes = rest.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        if bytes[i] == b'%' {
+            let hex = bytes
+                .get(i + 1..i + 3)
+                .and_then(|h| std::str::from_utf8(h).ok())
+                .and_then(|h| u8::from_str_radix(h, 16).ok())
+                .ok_or_else(|| format!("resource location '{uri}' has a bad percent-escape"))?;
+            out.push(hex);
+            i += 3;
+        } else {
+            out.push(bytes[i]);
+            i += 1;
+        }
+    }
+    let path =
+        String::from_utf8(out).map_err(|_| format!("resource location '{uri}' is not UTF-8"))?;
+    Ok(PathBuf::from(path))
+}
+
+/// `fmi2Instantiate`: NULL (with a log line, when a logger exists) on any problem.
+///
+/// # Safety
+/// Pointer arguments as the FMI 2.0 standard specifies them.
+pub unsafe fn instantiate<M: Model>(
+    instance_name: fmi2String,
+    fmu_type: fmi2Type,
+    guid: fmi2String,
+    resource_location: fmi2String,
+    functions: *const fmi2CallbackFunctions,
+    _visible: fmi2Boolean,
+    logging_on: fmi2Boolean,
+) -> fmi2Component {
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        let functions = functions.as_ref()?;
+        let name = c_str(instance_name).unwrap_or("");
+        let logger = Logger::new(
+            functions.logger,
+            functions.component_environment,
+            name,
+            logging_on != 0,
+        );
+        let fail = |m: String| {
+            logger.log(Status::Error, &format!("fmi2Instantiate: {m}"));
+        };
+        functions.logger?;
+        if name.is_empty() {
+            fail("instanceName must be a non-empty string".into());
+            return None;
+        }
+        if fmu_type != FMI2_COSIMULATION {
+            fail(format!(
+                "{} supports Co-Simulation only (fmuType = {fmu_type})",
+                M::IDENTIFIER
+            ));
+            return None;
+        }
+        let Some(guid) = c_str(guid) else {
+            fail("fmuGUID is missing".into());
+            return None;
+        };
+        let resources = match c_str(resource_location).map(resource_path) {
+            None => {
+                fail("fmuResourceLocation is missing; this FMU reads resources/config.toml".into());
+                return None;
+            }
+            Some(Err(e)) => {
+                fail(e);
+                return None;
+            }
+            Some(Ok(p)) => p,
+        };
+        let config = match Config::<M::Config>::load(&resources) {
+            Ok(c) => c,
+            Err(e) => {
+                fail(e);
+                return None;
+            }
+        };
+        match Instance::<M>::new(name, guid, Some(resources), config, logger) {
+            Ok(inst) => Some(Box::into_raw(Box::new(inst)) as fmi2Component),
+            Err(e) => {
+                // The logger moved into the failed constructor; report through a fresh one.
+                Logger::new(
+                    functions.logger,
+                    functions.component_environment,
+                    name,
+                    true,
+                )
+                .log(Status::Error, &format!("fmi2Instantiate: {e}"));
+                None
+            }
+        }
+    }));
+    result.ok().flatten().unwrap_or(std::ptr::null_mut())
+}
+
+/// `fmi2FreeInstance`.
+///
+/// # Safety
+/// `c` as returned by [`instantiate`]; not used afterwards.
+pub unsafe fn free_instance<M: Model>(c: fmi2Component) {
+    if c.is_null() || (*(c as *mut Instance<M>)).tag != model_tag::<M>() {
+        return;
+    }
+    let _ = catch_unwind(AssertUnwindSafe(|| {
+        let mut inst = Box::from_raw(c as *mut Instance<M>);
+        inst.tag = 0;
+        drop(inst);
+    }));
+}
+
+/// `fmi2SetDebugLogging`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn set_debug_logging<M: Model>(
+    c: fmi2Component,
+    on: fmi2Boolean,
+    n: usize,
+    categories: *const fmi2String,
+) -> Status {
+    with_instance::<M>(c, Call::SetDebugLogging, |inst| {
+        if n > 0 && categories.is_null() {
+            return inst.error("fmi2SetDebugLogging: categories is NULL");
+        }
+        let names: Option<Vec<String>> = (0..n)
+            .map(|i| c_str(*categories.add(i)).map(str::to_owned))
+            .collect();
+        let Some(names) = names else {
+            return inst.error("fmi2SetDebugLogging: a category name is NULL or not UTF-8");
+        };
+        match inst.logger.set_debug_logging(on != 0, &names) {
+            Ok(()) => Status::Ok,
+            Err(e) => inst.error(format!("fmi2SetDebugLogging: {e}")),
+        }
+    })
+}
+
+/// `fmi2SetupExperiment`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn setup_experiment<M: Model>(
+    c: fmi2Component,
+    _tolerance_defined: fmi2Boolean,
+    _tolerance: f64,
+    start: f64,
+    stop_defined: fmi2Boolean,
+    stop: f64,
+) -> Status {
+    with_instance::<M>(c, Call::SetupExperiment, |inst| {
+        inst.setup_experiment(start, (stop_defined != 0).then_some(stop))
+    })
+}
+
+/// `fmi2EnterInitializationMode`, `fmi2ExitInitializationMode`, `fmi2Terminate`, `fmi2Reset`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn transition<M: Model>(c: fmi2Component, call: Call) -> Status {
+    with_instance::<M>(c, call, |inst| match call {
+        Call::EnterInitializationMode => inst.enter_initialization_mode(),
+        Call::ExitInitializationMode => inst.exit_initialization_mode(),
+        Call::Terminate => inst.terminate(),
+        Call::Reset => inst.reset(),
+        _ => unreachable!("not a transition"),
+    })
+}
+
+unsafe fn slices<'a, V>(
+    vr: *const u32,
+    nvr: usize,
+    values: *const V,
+) -> Option<(&'a [u32], *const V)> {
+    if nvr == 0 {
+        return Some((&[], values));
+    }
+    if vr.is_null() || values.is_null() {
+        return None;
+    }
+    Some((std::slice::from_raw_parts(vr, nvr), values))
+}
+
+/// `fmi2Get{Real,Integer,Boolean,String}`: `read` copies value `vr` to position `i`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules; `out` has room for `nvr` values.
+pub unsafe fn get<M: Model, V>(
+    c: fmi2Component,
+    t: BaseType,
+    vr: *const u32,
+    nvr: usize,
+    out: *mut V,
+    read: impl Fn(&mut Instance<M>, u32) -> V,
+) -> Status {
+    with_instance::<M>(c, Call::Get(t), |inst| {
+        let Some((vrs, _)) = slices(vr, nvr, out as *const V) else {
+            return inst.error(format!("fmi2Get{t}: NULL array"));
+        };
+        if let Err(e) = inst.check_refs(t, vrs) {
+            return inst.error(format!("fmi2Get{t}: {e}"));
+        }
+        let status = inst.before_get();
+        if status >= Status::Error {
+            return status;
+        }
+        inst.string_buffer.clear();
+        for (i, &r) in vrs.iter().enumerate() {
+            out.add(i).write(read(inst, r));
+        }
+        status
+    })
+}
+
+/// `fmi2Set{Real,Integer,Boolean,String}`: `convert` reads value `i`; all-or-nothing.
+///
+/// # Safety
+/// FMI 2.0 pointer rules; `values` holds `nvr` values.
+pub unsafe fn set<M: Model, V: Copy>(
+    c: fmi2Component,
+    t: BaseType,
+    vr: *const u32,
+    nvr: usize,
+    values: *const V,
+    convert: impl Fn(V) -> Option<Value>,
+) -> Status {
+    with_instance::<M>(c, Call::Set(t), |inst| {
+        let Some((vrs, values)) = slices(vr, nvr, values) else {
+            return inst.error(format!("fmi2Set{t}: NULL array"));
+        };
+        let converted: Option<Vec<Value>> =
+            (0..vrs.len()).map(|i| convert(*values.add(i))).collect();
+        let Some(converted) = converted else {
+            return inst.error(format!("fmi2Set{t}: a value is NULL or not UTF-8"));
+        };
+        match inst.check_set(t, vrs, &converted) {
+            Ok(()) => {
+                inst.apply_set(vrs, converted);
+                Status::Ok
+            }
+            Err(e) => inst.error(format!("fmi2Set{t}: {e}")),
+        }
+    })
+}
+
+/// Read a string for `fmi2GetString`; the pointer lives until the next get call.
+pub fn string_out<M: Model>(inst: &mut Instance<M>, vr: u32) -> fmi2String {
+    let s = crate::log::c_message(&inst.core.store.strings[vr as usize]);
+    let p = s.as_ptr();
+    inst.string_buffer.push(s);
+    p
+}
+
+/// Convert an `fmi2SetString` argument.
+///
+/// # Safety
+/// `p` is NULL or a NUL-terminated string.
+pub unsafe fn string_in(p: fmi2String) -> Option<Value> {
+    c_str(p).map(|s| Value::String(s.to_owned()))
+}
+
+/// `fmi2DoStep`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn do_step<M: Model>(c: fmi2Component, t: f64, h: f64) -> Status {
+    with_instance::<M>(c, Call::DoStep, |inst| inst.do_step(t, h))
+}
+
+/// `fmi2GetFMUstate`: a new snapshot, or an overwrite of the one `state` points to.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn get_fmu_state<M: Model>(c: fmi2Component, state: *mut fmi2FMUstate) -> Status {
+    with_instance::<M>(c, Call::FmuState, |inst| {
+        if state.is_null() {
+            return inst.error("fmi2GetFMUstate: FMUstate is NULL");
+        }
+        let core = inst.core.clone();
+        match (*state as *mut Snapshot<M>).as_mut() {
+            Some(snap) if snap.tag == inst.tag => snap.core = core,
+            Some(_) => return inst.error("fmi2GetFMUstate: *FMUstate is not a state of this FMU"),
+            None => {
+                *state = Box::into_raw(Box::new(Snapshot {
+                    tag: inst.tag,
+                    core,
+                })) as fmi2FMUstate
+            }
+        }
+        Status::Ok
+    })
+}
+
+unsafe fn snapshot<'a, M: Model>(
+    inst: &Instance<M>,
+    state: fmi2FMUstate,
+) -> Result<&'a Snapshot<M>, Status> {
+    match (state as *const Snapshot<M>).as_ref() {
+        Some(s) if s.tag == inst.tag => Ok(s),
+        _ => Err(inst.error("FMUstate is NULL or not a state of this FMU")),
+    }
+}
+
+/// `fmi2SetFMUstate`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn set_fmu_state<M: Model>(c: fmi2Component, state: fmi2FMUstate) -> Status {
+    with_instance::<M>(c, Call::FmuState, |inst| match snapshot(inst, state) {
+        Ok(s) => {
+            inst.core = s.core.clone();
+            Status::Ok
+        }
+        Err(status) => status,
+    })
+}
+
+/// `fmi2FreeFMUstate`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn free_fmu_state<M: Model>(c: fmi2Component, state: *mut fmi2FMUstate) -> Status {
+    with_instance::<M>(c, Call::FmuState, |inst| {
+        if state.is_null() || (*state).is_null() {
+            return Status::Ok;
+        }
+        if let Err(status) = snapshot(inst, *state) {
+            return status;
+        }
+        let mut snap = Box::from_raw(*state as *mut Snapshot<M>);
+        snap.tag = 0;
+        drop(snap);
+        *state = std::ptr::null_mut();
+        Status::Ok
+    })
+}
+
+/// `fmi2SerializedFMUstateSize`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn serialized_size<M: Model>(
+    c: fmi2Component,
+    state: fmi2FMUstate,
+    size: *mut usize,
+) -> Status {
+    with_instance::<M>(c, Call::FmuState, |inst| {
+        let snap = match snapshot(inst, state) {
+            Ok(s) => s,
+            Err(status) => return status,
+        };
+        if size.is_null() {
+            return inst.error("fmi2SerializedFMUstateSize: size is NULL");
+        }
+        match inst.serialize(&snap.core) {
+            Ok(bytes) => {
+                *size = bytes.len();
+                Status::Ok
+            }
+            Err(e) => inst.error(e),
+        }
+    })
+}
+
+/// `fmi2SerializeFMUstate`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules; `out` has room for `size` bytes.
+pub unsafe fn serialize<M: Model>(
+    c: fmi2Component,
+    state: fmi2FMUstate,
+    out: *mut fmi2Byte,
+    size: usize,
+) -> Status {
+    with_instance::<M>(c, Call::FmuState, |inst| {
+        let snap = match snapshot(inst, state) {
+            Ok(s) => s,
+            Err(status) => return status,
+        };
+        match inst.serialize(&snap.core) {
+            Ok(bytes) if !out.is_null() && bytes.len() <= size => {
+                std::ptr::copy_nonoverlapping(bytes.as_ptr(), out as *mut u8, bytes.len());
+                Status::Ok
+            }
+            Ok(bytes) => inst.error(format!(
+                "fmi2SerializeFMUstate: buffer of {size} bytes, {} needed",
+                bytes.len()
+            )),
+            Err(e) => inst.error(e),
+        }
+    })
+}
+
+/// `fmi2DeSerializeFMUstate`.
+///
+/// # Safety
+/// FMI 2.0 pointer rules; `bytes` holds `size` bytes.
+pub unsafe fn deserialize<M: Model>(
+    c: fmi2Component,
+    bytes: *const fmi2Byte,
+    size: usize,
+    state: *mut fmi2FMUstate,
+) -> Status {
+    with_instance::<M>(c, Call::FmuState, |inst| {
+        if bytes.is_null() || state.is_null() {
+            return inst.error("fmi2DeSerializeFMUstate: NULL argument");
+        }
+        let data = std::slice::from_raw_parts(bytes as *const u8, size);
+        let core = match inst.deserialize(data) {
+            Ok(core) => core,
+            Err(e) => return inst.error(format!("fmi2DeSerializeFMUstate: {e}")),
+        };
+        match (*state as *mut Snapshot<M>).as_mut() {
+            Some(snap) if snap.tag == inst.tag => snap.core = core,
+            Some(_) => {
+                return inst.error("fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU")
+            }
+            None => {
+                *state = Box::into_raw(Box::new(Snapshot {
+                    tag: inst.tag,
+                    core,
+                })) as fmi2FMUstate
+            }
+        }
+        Status::Ok
+    })
+}
+
+/// An optional function this FMU does not provide (its capability flag says so).
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn unsupported<M: Model>(c: fmi2Component, call: Call) -> Status {
+    with_instance::<M>(c, call, |inst| {
+        inst.error(format!(
+            "{} is not supported by {} (see its capability flags)",
+            call.name(),
+            M::IDENTIFIER
+        ))
+    })
+}
+
+/// `fmi2GetStatus` and friends; only `fmi2LastSuccessfulTime` and `fmi2Terminated` are known.
+///
+/// # Safety
+/// FMI 2.0 pointer rules.
+pub unsafe fn get_status<M: Model, V>(
+    c: fmi2Component,
+    kind: fmi2StatusKind,
+    out: *mut V,
+    read: impl Fn(&Instance<M>, fmi2StatusKind) -> Option<V>,
+) -> Status {
+    with_instance::<M>(c, Call::GetStatus, |inst| {
+        if out.is_null() {
+            return inst.error("fmi2Get*Status: value is NULL");
+        }
+        match read(inst, kind) {
+            Some(v) => {
+                out.write(v);
+                Status::Ok
+            }
+            None => Status::Discard,
+        }
+    })
+}
+
+/// `fmi2GetVersion` and `fmi2GetTypesPlatform`.
+pub fn static_string(s: &'static CStr) -> fmi2String {
+    s.as_ptr()
+}

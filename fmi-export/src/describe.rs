@@ -321,3 +321,27 @@ pub fn describe_main<M: Model>() {
         }
     }
 }
+
+/// Test helper: the default description of `M` must equal the committed golden copy at `path`
+/// (run with `UPDATE_GOLDEN=1` to rewrite it after an intended interface change).
+pub fn assert_golden<M: Model>(path: &str) {
+    let xml = describe::<M>(&Config::default())
+        .and_then(|d| d.to_xml().map_err(|e| e.to_string()))
+        .unwrap_or_else(|e| panic!("{e}"));
+    if std::env::var_os("UPDATE_GOLDEN").is_some() {
+        std::fs::write(path, &xml).unwrap_or_else(|e| panic!("{path}: {e}"));
+        return;
+    }
+    let golden = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    if golden != xml {
+        let line = golden.lines().zip(xml.lines()).position(|(a, b)| a != b).unwrap_or(0);
+        panic!(
+            "{} drifted from its golden modelDescription.xml {path} at line {}:\n  golden:    {}\n  generated: {}\n\
+             (if the change is intended: UPDATE_GOLDEN=1 cargo test, and commit the file)",
+            M::IDENTIFIER,
+            line + 1,
+            golden.lines().nth(line).unwrap_or(""),
+            xml.lines().nth(line).unwrap_or("")
+        );
+    }
+}

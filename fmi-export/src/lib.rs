@@ -12,7 +12,7 @@ pub mod instance;
 pub mod log;
 pub mod model;
 
-pub use describe::{describe, describe_main, Config, Experiment, CONFIG_FILE};
+pub use describe::{assert_golden, describe, describe_main, Config, Experiment, CONFIG_FILE};
 pub use ffi::Status;
 pub use model::{
     Boolean, Context, Integer, Model, ModelError, Real, Spec, Store, Value, Variables,

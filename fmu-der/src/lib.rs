@@ -198,3 +198,11 @@ impl Model for Der {
 }
 
 fmi_export::export_fmu!(Der);
+
+#[cfg(test)]
+mod golden {
+    #[test]
+    fn model_description_matches_the_golden_copy() {
+        fmi_export::assert_golden::<super::Der>(concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription.xml"));
+    }
+}

@@ -302,3 +302,11 @@ impl Model for Grid {
 }
 
 fmi_export::export_fmu!(Grid);
+
+#[cfg(test)]
+mod golden {
+    #[test]
+    fn model_description_matches_the_golden_copy() {
+        fmi_export::assert_golden::<super::Grid>(concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription.xml"));
+    }
+}

@@ -167,3 +167,11 @@ mod tests {
         assert!((mu[1] - 0.6).abs() < 1e-15);
     }
 }
+
+#[cfg(test)]
+mod golden {
+    #[test]
+    fn model_description_matches_the_golden_copy() {
+        fmi_export::assert_golden::<super::Operator>(concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription.xml"));
+    }
+}

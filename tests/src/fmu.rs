@@ -1,0 +1,522 @@
+//! Loading an `.fmu`: unzip, read its modelDescription.xml, dlopen its binary, resolve the API.
+
+use model_description::ModelDescription;
+use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+
+/// `fmi2Status` as returned by an FMU.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Status {
+    Ok,
+    Warning,
+    Discard,
+    Error,
+    Fatal,
+    Pending,
+}
+
+impl Status {
+    fn from_c(s: c_int) -> Status {
+        match s {
+            0 => Status::Ok,
+            1 => Status::Warning,
+            2 => Status::Discard,
+            3 => Status::Error,
+            5 => Status::Pending,
+            _ => Status::Fatal,
+        }
+    }
+}
+
+type Component = *mut c_void;
+type FmuState = *mut c_void;
+type Logger = unsafe extern "C" fn(*mut c_void, *const c_char, c_int, *const c_char, *const c_char);
+
+#[repr(C)]
+struct CallbackFunctions {
+    logger: Option<Logger>,
+    allocate: Option<unsafe extern "C" fn(usize, usize) -> *mut c_void>,
+    free: Option<unsafe extern "C" fn(*mut c_void)>,
+    step_finished: Option<unsafe extern "C" fn(*mut c_void, c_int)>,
+    environment: *mut c_void,
+}
+
+macro_rules! api {
+    ($($field:ident : $name:literal => fn($($arg:ty),*) $(-> $ret:ty)?;)*) => {
+        /// The 34 FMI 2.0 Co-Simulation functions of one binary.
+        #[allow(non_snake_case)]
+        struct Api { $($field: unsafe extern "C" fn($($arg),*) $(-> $ret)?,)* }
+
+        impl Api {
+            /// Resolve every function; the first missing one is named.
+            unsafe fn resolve(lib: *mut c_void) -> Result<Api, String> {
+                Ok(Api { $($field: {
+                    let sym = libc::dlsym(lib, concat!($name, "\0").as_ptr() as *const c_char);
+                    if sym.is_null() {
+                        return Err(format!("the binary does not export {}", $name));
+                    }
+                    std::mem::transmute::<*mut c_void, unsafe extern "C" fn($($arg),*) $(-> $ret)?>(sym)
+                },)* })
+            }
+        }
+
+        /// Names of the functions every FMI 2.0 Co-Simulation binary must export.
+        pub const FMI2_CS_FUNCTIONS: &[&str] = &[$($name),*];
+    };
+}
+
+api! {
+    get_types_platform: "fmi2GetTypesPlatform" => fn() -> *const c_char;
+    get_version: "fmi2GetVersion" => fn() -> *const c_char;
+    set_debug_logging: "fmi2SetDebugLogging" => fn(Component, c_int, usize, *const *const c_char) -> c_int;
+    instantiate: "fmi2Instantiate" => fn(*const c_char, c_int, *const c_char, *const c_char, *const CallbackFunctions, c_int, c_int) -> Component;
+    free_instance: "fmi2FreeInstance" => fn(Component);
+    setup_experiment: "fmi2SetupExperiment" => fn(Component, c_int, f64, f64, c_int, f64) -> c_int;
+    enter_initialization_mode: "fmi2EnterInitializationMode" => fn(Component) -> c_int;
+    exit_initialization_mode: "fmi2ExitInitializationMode" => fn(Component) -> c_int;
+    terminate: "fmi2Terminate" => fn(Component) -> c_int;
+    reset: "fmi2Reset" => fn(Component) -> c_int;
+    get_real: "fmi2GetReal" => fn(Component, *const u32, usize, *mut f64) -> c_int;
+    get_integer: "fmi2GetInteger" => fn(Component, *const u32, usize, *mut c_int) -> c_int;
+    get_boolean: "fmi2GetBoolean" => fn(Component, *const u32, usize, *mut c_int) -> c_int;
+    get_string: "fmi2GetString" => fn(Component, *const u32, usize, *mut *const c_char) -> c_int;
+    set_real: "fmi2SetReal" => fn(Component, *const u32, usize, *const f64) -> c_int;
+    set_integer: "fmi2SetInteger" => fn(Component, *const u32, usize, *const c_int) -> c_int;
+    set_boolean: "fmi2SetBoolean" => fn(Component, *const u32, usize, *const c_int) -> c_int;
+    set_string: "fmi2SetString" => fn(Component, *const u32, usize, *const *const c_char) -> c_int;
+    get_fmu_state: "fmi2GetFMUstate" => fn(Component, *mut FmuState) -> c_int;
+    set_fmu_state: "fmi2SetFMUstate" => fn(Component, FmuState) -> c_int;
+    free_fmu_state: "fmi2FreeFMUstate" => fn(Component, *mut FmuState) -> c_int;
+    serialized_fmu_state_size: "fmi2SerializedFMUstateSize" => fn(Component, FmuState, *mut usize) -> c_int;
+    serialize_fmu_state: "fmi2SerializeFMUstate" => fn(Component, FmuState, *mut c_char, usize) -> c_int;
+    deserialize_fmu_state: "fmi2DeSerializeFMUstate" => fn(Component, *const c_char, usize, *mut FmuState) -> c_int;
+    get_directional_derivative: "fmi2GetDirectionalDerivative" => fn(Component, *const u32, usize, *const u32, usize, *const f64, *mut f64) -> c_int;
+    set_real_input_derivatives: "fmi2SetRealInputDerivatives" => fn(Component, *const u32, usize, *const c_int, *const f64) -> c_int;
+    get_real_output_derivatives: "fmi2GetRealOutputDerivatives" => fn(Component, *const u32, usize, *const c_int, *mut f64) -> c_int;
+    do_step: "fmi2DoStep" => fn(Component, f64, f64, c_int) -> c_int;
+    cancel_step: "fmi2CancelStep" => fn(Component) -> c_int;
+    get_status: "fmi2GetStatus" => fn(Component, c_int, *mut c_int) -> c_int;
+    get_real_status: "fmi2GetRealStatus" => fn(Component, c_int, *mut f64) -> c_int;
+    get_integer_status: "fmi2GetIntegerStatus" => fn(Component, c_int, *mut c_int) -> c_int;
+    get_boolean_status: "fmi2GetBooleanStatus" => fn(Component, c_int, *mut c_int) -> c_int;
+    get_string_status: "fmi2GetStringStatus" => fn(Component, c_int, *mut *const c_char) -> c_int;
+}
+
+/// An unpacked, loaded FMU.
+pub struct Fmu {
+    pub description: ModelDescription,
+    /// Where the archive was unpacked (removed on drop).
+    pub dir: PathBuf,
+    api: Api,
+    library: *mut c_void,
+}
+
+// SAFETY: the library handle and function pointers are plain addresses; instances are not shared.
+unsafe impl Send for Fmu {}
+unsafe impl Sync for Fmu {}
+
+/// Why an FMU could not be loaded or used.
+#[derive(Debug)]
+pub struct Error(pub String);
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Error {}
+
+fn err<T>(m: impl Into<String>) -> Result<T, Error> {
+    Err(Error(m.into()))
+}
+
+fn unique_dir(stem: &str) -> PathBuf {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
+    std::env::temp_dir().join(format!("dvpp-cosim-{}-{n}-{stem}", std::process::id()))
+}
+
+impl Fmu {
+    /// Unpack `path` into a fresh temporary directory and load it.
+    pub fn load(path: &Path) -> Result<Fmu, Error> {
+        let file = std::fs::File::open(path).map_err(|e| Error(format!("cannot open {}: {e}", path.display())))?;
+        let mut archive =
+            zip::ZipArchive::new(file).map_err(|e| Error(format!("{} is not an FMU archive: {e}", path.display())))?;
+        let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("fmu");
+        let dir = unique_dir(stem);
+        archive
+            .extract(&dir)
+            .map_err(|e| Error(format!("cannot unpack {}: {e}", path.display())))?;
+        Fmu::load_dir(dir).map_err(|e| Error(format!("{}: {e}", path.display())))
+    }
+
+    /// Load an FMU already unpacked in `dir` (the directory is removed when the `Fmu` drops).
+    pub fn load_dir(dir: PathBuf) -> Result<Fmu, Error> {
+        let xml_path = dir.join("modelDescription.xml");
+        let xml = std::fs::read_to_string(&xml_path).map_err(|e| Error(format!("no modelDescription.xml: {e}")))?;
+        let description = ModelDescription::from_xml(&xml).map_err(|e| Error(e.to_string()))?;
+        let Some(id) = description.model_identifier().map(str::to_owned) else {
+            return err("the FMU does not support Co-Simulation");
+        };
+        let binary = dir.join("binaries").join("linux64").join(format!("{id}.so"));
+        if !binary.is_file() {
+            return err(format!("missing binary binaries/linux64/{id}.so"));
+        }
+        let c_path = CString::new(binary.to_string_lossy().as_bytes()).map_err(|_| Error("bad path".into()))?;
+        // SAFETY: dlopen/dlsym with valid C strings; the handle is closed in Drop.
+        unsafe {
+            let library = libc::dlopen(c_path.as_ptr(), libc::RTLD_NOW | libc::RTLD_LOCAL);
+            if library.is_null() {
+                let why = CStr::from_ptr(libc::dlerror()).to_string_lossy().into_owned();
+                return err(format!("cannot load {}: {why}", binary.display()));
+            }
+            match Api::resolve(library) {
+                Ok(api) => Ok(Fmu { description, dir, api, library }),
+                Err(e) => {
+                    libc::dlclose(library);
+                    err(e)
+                }
+            }
+        }
+    }
+
+    /// The `file://` URI of the unpacked `resources/` directory, percent-encoded.
+    pub fn resource_uri(&self) -> String {
+        let path = self.dir.join("resources");
+        let mut uri = String::from("file://");
+        for b in path.to_string_lossy().bytes() {
+            if b.is_ascii_alphanumeric() || b"/-_.~".contains(&b) {
+                uri.push(b as char);
+            } else {
+                uri.push_str(&format!("%{b:02X}"));
+            }
+        }
+        uri
+    }
+
+    /// `fmi2GetVersion` and `fmi2GetTypesPlatform`.
+    pub fn version_and_platform(&self) -> (String, String) {
+        // SAFETY: both return static C strings.
+        unsafe {
+            let v = CStr::from_ptr((self.api.get_version)()).to_string_lossy().into_owned();
+            let p = CStr::from_ptr((self.api.get_types_platform)()).to_string_lossy().into_owned();
+            (v, p)
+        }
+    }
+
+    /// Value reference of the variable `name`.
+    pub fn vr(&self, name: &str) -> Result<u32, Error> {
+        self.description
+            .variable(name)
+            .map(|v| v.value_reference)
+            .ok_or_else(|| Error(format!("{} has no variable '{name}'", self.description.model_name)))
+    }
+
+    /// Instantiate with the description's GUID and the unpacked resources.
+    pub fn instantiate(self: &Arc<Self>, name: &str) -> Result<Instance, Error> {
+        let guid = self.description.guid.clone();
+        self.instantiate_with(name, &guid, &self.resource_uri(), 1)
+    }
+
+    /// Instantiate with explicit GUID, resource URI and `fmuType` (for tests of bad calls).
+    pub fn instantiate_with(self: &Arc<Self>, name: &str, guid: &str, resources: &str, fmu_type: i32) -> Result<Instance, Error> {
+        let sink = Box::new(LogSink { instance: name.to_owned(), records: Mutex::new(Vec::new()), echo: std::env::var_os("DVPP_FMU_LOG").is_some() });
+        let sink_ptr = Box::into_raw(sink);
+        let callbacks = Box::new(CallbackFunctions {
+            logger: Some(log_callback),
+            allocate: Some(alloc_callback),
+            free: Some(free_callback),
+            step_finished: None,
+            environment: sink_ptr as *mut c_void,
+        });
+        let (c_name, c_guid, c_res) = (cstring(name)?, cstring(guid)?, cstring(resources)?);
+        // SAFETY: valid C strings and a callbacks struct that lives as long as the instance.
+        let component = unsafe {
+            (self.api.instantiate)(c_name.as_ptr(), fmu_type, c_guid.as_ptr(), c_res.as_ptr(), &*callbacks, 0, 0)
+        };
+        // SAFETY: we own the sink until the instance is dropped.
+        let sink = unsafe { Box::from_raw(sink_ptr) };
+        if component.is_null() {
+            let last = sink.records.lock().unwrap().last().map(|r| r.message.clone()).unwrap_or_default();
+            return err(format!("fmi2Instantiate of '{name}' returned NULL: {last}"));
+        }
+        Ok(Instance { fmu: Arc::clone(self), component, sink, callbacks })
+    }
+}
+
+impl Drop for Fmu {
+    fn drop(&mut self) {
+        // SAFETY: every Instance holds an Arc<Fmu>, so none is alive here.
+        unsafe { libc::dlclose(self.library) };
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+fn cstring(s: &str) -> Result<CString, Error> {
+    CString::new(s).map_err(|_| Error(format!("'{s}' contains a NUL byte")))
+}
+
+/// One message an FMU logged.
+#[derive(Debug, Clone)]
+pub struct LogRecord {
+    pub status: Status,
+    pub category: String,
+    pub message: String,
+}
+
+struct LogSink {
+    instance: String,
+    records: Mutex<Vec<LogRecord>>,
+    echo: bool,
+}
+
+unsafe extern "C" fn log_callback(env: *mut c_void, _name: *const c_char, status: c_int, category: *const c_char, message: *const c_char) {
+    let Some(sink) = (env as *const LogSink).as_ref() else { return };
+    let text = |p: *const c_char| if p.is_null() { String::new() } else { CStr::from_ptr(p).to_string_lossy().into_owned() };
+    // Messages arrive as printf formats; ours carry no arguments, so `%%` is the only escape.
+    let record = LogRecord { status: Status::from_c(status), category: text(category), message: text(message).replace("%%", "%") };
+    if sink.echo {
+        eprintln!("[{}] {:?} {}: {}", sink.instance, record.status, record.category, record.message);
+    }
+    if let Ok(mut r) = sink.records.lock() {
+        r.push(record);
+    }
+}
+
+unsafe extern "C" fn alloc_callback(n: usize, size: usize) -> *mut c_void {
+    libc::calloc(n, size)
+}
+
+unsafe extern "C" fn free_callback(p: *mut c_void) {
+    libc::free(p)
+}
+
+/// An instance of a loaded FMU; freed on drop.
+pub struct Instance {
+    fmu: Arc<Fmu>,
+    component: Component,
+    sink: Box<LogSink>,
+    callbacks: Box<CallbackFunctions>,
+}
+
+// SAFETY: an instance is used from one thread at a time (FMI allows moving it between threads).
+unsafe impl Send for Instance {}
+
+/// A saved FMU state; must be freed through the instance that made it.
+pub struct SavedState(FmuState);
+
+impl Instance {
+    pub fn fmu(&self) -> &Arc<Fmu> {
+        &self.fmu
+    }
+
+    /// Everything the FMU logged so far.
+    pub fn log(&self) -> Vec<LogRecord> {
+        self.sink.records.lock().map(|r| r.clone()).unwrap_or_default()
+    }
+
+    /// The last message the FMU logged.
+    pub fn last_message(&self) -> Option<String> {
+        self.sink.records.lock().ok()?.last().map(|r| r.message.clone())
+    }
+
+    fn api(&self) -> &Api {
+        &self.fmu.api
+    }
+
+    pub fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> Status {
+        let c: Vec<CString> = categories.iter().map(|s| CString::new(*s).unwrap()).collect();
+        let p: Vec<*const c_char> = c.iter().map(|s| s.as_ptr()).collect();
+        // SAFETY: arrays of the stated length.
+        Status::from_c(unsafe { (self.api().set_debug_logging)(self.component, on as c_int, p.len(), p.as_ptr()) })
+    }
+
+    pub fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> Status {
+        // SAFETY: plain values.
+        Status::from_c(unsafe {
+            (self.api().setup_experiment)(self.component, 0, 0.0, start, stop.is_some() as c_int, stop.unwrap_or(0.0))
+        })
+    }
+
+    pub fn enter_initialization_mode(&mut self) -> Status {
+        // SAFETY: valid component.
+        Status::from_c(unsafe { (self.api().enter_initialization_mode)(self.component) })
+    }
+
+    pub fn exit_initialization_mode(&mut self) -> Status {
+        // SAFETY: valid component.
+        Status::from_c(unsafe { (self.api().exit_initialization_mode)(self.component) })
+    }
+
+    pub fn terminate(&mut self) -> Status {
+        // SAFETY: valid component.
+        Status::from_c(unsafe { (self.api().terminate)(self.component) })
+    }
+
+    pub fn reset(&mut self) -> Status {
+        // SAFETY: valid component.
+        Status::from_c(unsafe { (self.api().reset)(self.component) })
+    }
+
+    pub fn get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> Status {
+        assert_eq!(vrs.len(), out.len());
+        // SAFETY: arrays of equal, stated length.
+        Status::from_c(unsafe { (self.api().get_real)(self.component, vrs.as_ptr(), vrs.len(), out.as_mut_ptr()) })
+    }
+
+    pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> Status {
+        assert_eq!(vrs.len(), values.len());
+        // SAFETY: arrays of equal, stated length.
+        Status::from_c(unsafe { (self.api().set_real)(self.component, vrs.as_ptr(), vrs.len(), values.as_ptr()) })
+    }
+
+    pub fn get_integer(&mut self, vrs: &[u32], out: &mut [i32]) -> Status {
+        assert_eq!(vrs.len(), out.len());
+        // SAFETY: arrays of equal, stated length.
+        Status::from_c(unsafe { (self.api().get_integer)(self.component, vrs.as_ptr(), vrs.len(), out.as_mut_ptr()) })
+    }
+
+    pub fn set_integer(&mut self, vrs: &[u32], values: &[i32]) -> Status {
+        assert_eq!(vrs.len(), values.len());
+        // SAFETY: arrays of equal, stated length.
+        Status::from_c(unsafe { (self.api().set_integer)(self.component, vrs.as_ptr(), vrs.len(), values.as_ptr()) })
+    }
+
+    pub fn get_boolean(&mut self, vrs: &[u32], out: &mut [bool]) -> Status {
+        let mut raw = vec![0; vrs.len()];
+        // SAFETY: arrays of equal, stated length.
+        let s = Status::from_c(unsafe { (self.api().get_boolean)(self.component, vrs.as_ptr(), vrs.len(), raw.as_mut_ptr()) });
+        for (o, r) in out.iter_mut().zip(raw) {
+            *o = r != 0;
+        }
+        s
+    }
+
+    pub fn set_boolean(&mut self, vrs: &[u32], values: &[bool]) -> Status {
+        let raw: Vec<c_int> = values.iter().map(|&b| b as c_int).collect();
+        // SAFETY: arrays of equal, stated length.
+        Status::from_c(unsafe { (self.api().set_boolean)(self.component, vrs.as_ptr(), vrs.len(), raw.as_ptr()) })
+    }
+
+    pub fn get_string(&mut self, vrs: &[u32]) -> (Status, Vec<String>) {
+        let mut raw = vec![std::ptr::null(); vrs.len()];
+        // SAFETY: arrays of equal length; strings copied before the next call.
+        unsafe {
+            let s = Status::from_c((self.api().get_string)(self.component, vrs.as_ptr(), vrs.len(), raw.as_mut_ptr()));
+            let v = raw.iter().map(|&p| if p.is_null() { String::new() } else { CStr::from_ptr(p).to_string_lossy().into_owned() }).collect();
+            (s, v)
+        }
+    }
+
+    pub fn set_string(&mut self, vrs: &[u32], values: &[&str]) -> Status {
+        let c: Vec<CString> = values.iter().map(|s| CString::new(*s).unwrap()).collect();
+        let p: Vec<*const c_char> = c.iter().map(|s| s.as_ptr()).collect();
+        // SAFETY: arrays of equal, stated length.
+        Status::from_c(unsafe { (self.api().set_string)(self.component, vrs.as_ptr(), vrs.len(), p.as_ptr()) })
+    }
+
+    pub fn do_step(&mut self, t: f64, h: f64) -> Status {
+        // SAFETY: plain values.
+        Status::from_c(unsafe { (self.api().do_step)(self.component, t, h, 1) })
+    }
+
+    /// `fmi2GetFMUstate` into a new state.
+    pub fn get_state(&mut self) -> (Status, Option<SavedState>) {
+        let mut s: FmuState = std::ptr::null_mut();
+        // SAFETY: out-pointer to a null state asks for a new one.
+        let status = Status::from_c(unsafe { (self.api().get_fmu_state)(self.component, &mut s) });
+        (status, (!s.is_null()).then_some(SavedState(s)))
+    }
+
+    pub fn set_state(&mut self, s: &SavedState) -> Status {
+        // SAFETY: a state this FMU made.
+        Status::from_c(unsafe { (self.api().set_fmu_state)(self.component, s.0) })
+    }
+
+    pub fn free_state(&mut self, mut s: SavedState) -> Status {
+        // SAFETY: a state this FMU made; freed once.
+        Status::from_c(unsafe { (self.api().free_fmu_state)(self.component, &mut s.0) })
+    }
+
+    /// Serialize a saved state to bytes.
+    pub fn serialize_state(&mut self, s: &SavedState) -> Result<Vec<u8>, Status> {
+        let mut size = 0usize;
+        // SAFETY: out-pointers valid; buffer of the reported size.
+        unsafe {
+            let st = Status::from_c((self.api().serialized_fmu_state_size)(self.component, s.0, &mut size));
+            if st > Status::Warning {
+                return Err(st);
+            }
+            let mut buf = vec![0u8; size];
+            let st = Status::from_c((self.api().serialize_fmu_state)(self.component, s.0, buf.as_mut_ptr() as *mut c_char, size));
+            if st > Status::Warning {
+                return Err(st);
+            }
+            Ok(buf)
+        }
+    }
+
+    /// Turn bytes back into a saved state of this instance.
+    pub fn deserialize_state(&mut self, bytes: &[u8]) -> (Status, Option<SavedState>) {
+        let mut s: FmuState = std::ptr::null_mut();
+        // SAFETY: buffer of the stated length; out-pointer to a null state.
+        let st = Status::from_c(unsafe {
+            (self.api().deserialize_fmu_state)(self.component, bytes.as_ptr() as *const c_char, bytes.len(), &mut s)
+        });
+        (st, (!s.is_null()).then_some(SavedState(s)))
+    }
+
+    /// Call each optional function this project's FMUs do not provide; returns their statuses.
+    pub fn call_unsupported(&mut self) -> Vec<(&'static str, Status)> {
+        let (vr, order, mut x) = ([0u32], [1 as c_int], [0.0f64]);
+        // SAFETY: one-element arrays as stated.
+        unsafe {
+            let a = self.api();
+            vec![
+                ("fmi2GetDirectionalDerivative", (a.get_directional_derivative)(self.component, vr.as_ptr(), 1, vr.as_ptr(), 1, x.as_ptr(), x.as_mut_ptr())),
+                ("fmi2SetRealInputDerivatives", (a.set_real_input_derivatives)(self.component, vr.as_ptr(), 1, order.as_ptr(), x.as_ptr())),
+                ("fmi2GetRealOutputDerivatives", (a.get_real_output_derivatives)(self.component, vr.as_ptr(), 1, order.as_ptr(), x.as_mut_ptr())),
+                ("fmi2CancelStep", (a.cancel_step)(self.component)),
+            ]
+            .into_iter()
+            .map(|(n, s)| (n, Status::from_c(s)))
+            .collect()
+        }
+    }
+
+    /// `fmi2GetRealStatus(fmi2LastSuccessfulTime)` and `fmi2GetBooleanStatus(fmi2Terminated)`.
+    pub fn last_successful_time(&mut self) -> (Status, f64) {
+        let mut t = f64::NAN;
+        // SAFETY: out-pointer valid.
+        let s = Status::from_c(unsafe { (self.api().get_real_status)(self.component, 2, &mut t) });
+        (s, t)
+    }
+
+    /// Statuses the FMU reports for the other status queries (integer, string, boolean, status).
+    pub fn status_queries(&mut self) -> Vec<Status> {
+        let (mut i, mut b, mut st) = (0, 0, 0);
+        let mut s: *const c_char = std::ptr::null();
+        // SAFETY: out-pointers valid.
+        unsafe {
+            let a = self.api();
+            vec![
+                Status::from_c((a.get_status)(self.component, 0, &mut st)),
+                Status::from_c((a.get_integer_status)(self.component, 0, &mut i)),
+                Status::from_c((a.get_boolean_status)(self.component, 3, &mut b)),
+                Status::from_c((a.get_string_status)(self.component, 1, &mut s)),
+            ]
+        }
+    }
+}
+
+impl Drop for Instance {
+    fn drop(&mut self) {
+        // SAFETY: the component is valid and freed once; callbacks outlive it.
+        unsafe { (self.fmu.api.free_instance)(self.component) };
+        let _ = &self.callbacks;
+    }
+}

@@ -1,0 +1,178 @@
+//! `cargo xtask`: builds and bundles the FMUs, runs the tests and the demo.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, ExitCode};
+
+/// The FMU crates: package, describe binary, model identifier, library file.
+const FMUS: &[(&str, &str)] = &[
+    ("fmu-der", "dvpp_der"),
+    ("fmu-operator", "dvpp_operator"),
+    ("fmu-grid", "dvpp_grid"),
+];
+
+/// Python packages the tests install into their own virtual environment.
+const PYTHON_PACKAGES: &[&str] = &["fmpy==0.3.32", "pytest==8.4.2"];
+
+type Result<T = ()> = std::result::Result<T, String>;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace root").to_path_buf()
+}
+
+fn run(cmd: &mut Command) -> Result {
+    let shown = format!("{cmd:?}");
+    let status = cmd.status().map_err(|e| format!("cannot run {shown}: {e}"))?;
+    if status.success() {
+        Ok(())
+    } else {
+        Err(format!("{shown} failed ({status})"))
+    }
+}
+
+fn cargo() -> Command {
+    let mut c = Command::new(std::env::var("CARGO").unwrap_or_else(|_| "cargo".into()));
+    c.current_dir(root());
+    c
+}
+
+const USAGE: &str = "usage: cargo xtask <task>
+
+tasks:
+  bundle   build the FMUs in release and write dist/default/<id>.fmu
+  demo     bundle, then simulate every default FMU headless; results in results/
+  test     bundle, run the Rust tests, then the Python (fmpy) tests in target/venv";
+
+fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let result = match args.first().map(String::as_str) {
+        Some("bundle") => bundle().map(|_| ()),
+        Some("demo") => demo(),
+        Some("test") => test(),
+        _ => Err(USAGE.into()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("xtask: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Build the cdylibs and describe binaries in release mode.
+fn build_release() -> Result {
+    let mut c = cargo();
+    c.args(["build", "--release"]);
+    for (package, _) in FMUS {
+        c.args(["--package", package]);
+    }
+    run(&mut c)
+}
+
+/// Write one `.fmu`: modelDescription.xml from the describe binary, the binary, resources.
+fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result {
+    let release = root().join("target").join("release");
+    let describe = release.join(format!("{package}-describe"));
+    let output = Command::new(&describe)
+        .arg(resources)
+        .output()
+        .map_err(|e| format!("cannot run {}: {e}", describe.display()))?;
+    if !output.status.success() {
+        return Err(format!("{package}: {}", String::from_utf8_lossy(&output.stderr).trim()));
+    }
+    let library = release.join(format!("lib{}.so", package.replace('-', "_")));
+    let binary = std::fs::read(&library).map_err(|e| format!("{}: {e}", library.display()))?;
+
+    let file = std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;
+    let mut zip = zip::ZipWriter::new(file);
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated)
+        .unix_permissions(0o644);
+    let mut add = |name: &str, bytes: &[u8]| -> Result {
+        zip.start_file(name, options).map_err(|e| e.to_string())?;
+        zip.write_all(bytes).map_err(|e| e.to_string())
+    };
+    add("modelDescription.xml", &output.stdout)?;
+    add(&format!("binaries/linux64/{id}.so"), &binary)?;
+    let mut entries: Vec<_> = std::fs::read_dir(resources)
+        .map_err(|e| format!("{}: {e}", resources.display()))?
+        .filter_map(|e| e.ok())
+        .collect();
+    entries.sort_by_key(|e| e.file_name());
+    for entry in entries {
+        let bytes = std::fs::read(entry.path()).map_err(|e| e.to_string())?;
+        add(&format!("resources/{}", entry.file_name().to_string_lossy()), &bytes)?;
+    }
+    zip.finish().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// Build and bundle the default FMUs into `dist/default/`; returns their paths.
+fn bundle() -> Result<Vec<PathBuf>> {
+    build_release()?;
+    let dist = root().join("dist").join("default");
+    std::fs::create_dir_all(&dist).map_err(|e| e.to_string())?;
+    let mut written = Vec::new();
+    for (package, id) in FMUS {
+        let resources = root().join("target").join("bundle").join(id).join("resources");
+        std::fs::create_dir_all(&resources).map_err(|e| e.to_string())?;
+        std::fs::write(
+            resources.join("config.toml"),
+            "# Default configuration: declared start values, default experiment.\n",
+        )
+        .map_err(|e| e.to_string())?;
+        let out = dist.join(format!("{id}.fmu"));
+        write_fmu(package, id, &resources, &out)?;
+        println!("bundled {}", out.strip_prefix(root()).unwrap_or(&out).display());
+        written.push(out);
+    }
+    Ok(written)
+}
+
+fn demo() -> Result {
+    let fmus = bundle()?;
+    let results = root().join("results");
+    std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;
+    for fmu in &fmus {
+        let stem = fmu.file_stem().unwrap().to_string_lossy().into_owned();
+        run(cargo()
+            .args(["run", "--release", "--quiet", "--package", "dvpp-cosim", "--bin", "cosim", "--"])
+            .arg(fmu)
+            .arg("--out")
+            .arg(results.join(format!("{stem}.csv"))))?;
+    }
+    println!("results in {}", results.display());
+    Ok(())
+}
+
+/// The virtual environment with the Python test dependencies, created on first use.
+fn python_env() -> Result<PathBuf> {
+    let venv = root().join("target").join("venv");
+    let python = venv.join("bin").join("python");
+    let marker = venv.join(".installed");
+    let wanted = PYTHON_PACKAGES.join(" ");
+    if std::fs::read_to_string(&marker).ok().as_deref() == Some(wanted.as_str()) && python.exists() {
+        return Ok(python);
+    }
+    let system = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
+    println!("creating {} with {wanted}", venv.display());
+    run(Command::new(&system).args(["-m", "venv", "--clear"]).arg(&venv))?;
+    run(Command::new(&python).args(["-m", "pip", "install", "--quiet", "--disable-pip-version-check"]).args(PYTHON_PACKAGES))?;
+    std::fs::write(&marker, wanted).map_err(|e| e.to_string())?;
+    Ok(python)
+}
+
+fn test() -> Result {
+    let started = std::time::Instant::now();
+    bundle()?;
+    let dist = root().join("dist").join("default");
+    run(cargo().args(["test", "--workspace"]).env("DVPP_DIST", &dist))?;
+    let python = python_env()?;
+    run(Command::new(&python)
+        .args(["-m", "pytest", "-q", "tests/python"])
+        .current_dir(root())
+        .env("DVPP_DIST", &dist))?;
+    println!("cargo xtask test: all passed in {:.0} s", started.elapsed().as_secs_f64());
+    Ok(())
+}

@@ -334,7 +334,11 @@ pub fn assert_golden<M: Model>(path: &str) {
     }
     let golden = std::fs::read_to_string(path).unwrap_or_else(|e| panic!("{path}: {e}"));
     if golden != xml {
-        let line = golden.lines().zip(xml.lines()).position(|(a, b)| a != b).unwrap_or(0);
+        let line = golden
+            .lines()
+            .zip(xml.lines())
+            .position(|(a, b)| a != b)
+            .unwrap_or(0);
         panic!(
             "{} drifted from its golden modelDescription.xml {path} at line {}:\n  golden:    {}\n  generated: {}\n\
              (if the change is intended: UPDATE_GOLDEN=1 cargo test, and commit the file)",

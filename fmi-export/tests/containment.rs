@@ -1,7 +1,9 @@
 //! A model that panics and one that fails: the exported C functions contain both, log them
 //! through the master's logger and return fmi2Fatal / fmi2Error; the host process lives on.
 
-use fmi_export::ffi::{fmi2CallbackFunctions, fmi2ComponentEnvironment, fmi2String, FMI2_COSIMULATION};
+use fmi_export::ffi::{
+    fmi2CallbackFunctions, fmi2ComponentEnvironment, fmi2String, FMI2_COSIMULATION,
+};
 use fmi_export::{Config, Context, Model, ModelError, Real, Spec, Status, Store, Variables};
 use serde::{Deserialize, Serialize};
 use std::ffi::{CStr, CString};
@@ -20,7 +22,10 @@ impl Model for Fragile {
     const DESCRIPTION: &'static str = "panics when x > 1, fails when x < -1";
 
     fn declare(_: &(), v: &mut Variables) -> Result<Self, String> {
-        Ok(Fragile { x: v.real(Spec::input("x", 0.0, "", "input")), y: v.real(Spec::output("y", "", "100% of x")) })
+        Ok(Fragile {
+            x: v.real(Spec::input("x", 0.0, "", "input")),
+            y: v.real(Spec::output("y", "", "100% of x")),
+        })
     }
 
     fn initialize(&mut self, s: &mut Store, _: &mut Context) -> Result<(), ModelError> {
@@ -28,7 +33,13 @@ impl Model for Fragile {
         Ok(())
     }
 
-    fn do_step(&mut self, s: &mut Store, _: f64, _: f64, ctx: &mut Context) -> Result<(), ModelError> {
+    fn do_step(
+        &mut self,
+        s: &mut Store,
+        _: f64,
+        _: f64,
+        ctx: &mut Context,
+    ) -> Result<(), ModelError> {
         if s[self.x] > 1.0 {
             panic!("x = {} is too large", s[self.x]);
         }
@@ -49,8 +60,17 @@ static LOG: Mutex<Vec<(Status, String)>> = Mutex::new(Vec::new());
 
 // Stable Rust cannot define a C-variadic function; our FMUs pass no variadic arguments, so a
 // logger with only the fixed parameters receives them correctly (as the master's logger does).
-unsafe extern "C" fn logger(_: fmi2ComponentEnvironment, _: fmi2String, status: Status, _: fmi2String, message: fmi2String) {
-    LOG.lock().unwrap().push((status, CStr::from_ptr(message).to_string_lossy().into_owned()));
+unsafe extern "C" fn logger(
+    _: fmi2ComponentEnvironment,
+    _: fmi2String,
+    status: Status,
+    _: fmi2String,
+    message: fmi2String,
+) {
+    LOG.lock().unwrap().push((
+        status,
+        CStr::from_ptr(message).to_string_lossy().into_owned(),
+    ));
 }
 
 #[test]
@@ -58,17 +78,34 @@ fn panics_are_contained_and_errors_escalate() {
     let dir = std::env::temp_dir().join(format!("fragile-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("config.toml"), "").unwrap();
-    let guid = fmi_export::describe::<Fragile>(&Config::default()).unwrap().guid;
-    let callbacks = unsafe { fmi2CallbackFunctions {
-        logger: Some(std::mem::transmute::<
-            unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, Status, fmi2String, fmi2String),
-            unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, Status, fmi2String, fmi2String, ...),
-        >(logger)),
-        allocate_memory: None,
-        free_memory: None,
-        step_finished: None,
-        component_environment: std::ptr::null_mut(),
-    } };
+    let guid = fmi_export::describe::<Fragile>(&Config::default())
+        .unwrap()
+        .guid;
+    let callbacks = unsafe {
+        fmi2CallbackFunctions {
+            logger: Some(std::mem::transmute::<
+                unsafe extern "C" fn(
+                    fmi2ComponentEnvironment,
+                    fmi2String,
+                    Status,
+                    fmi2String,
+                    fmi2String,
+                ),
+                unsafe extern "C" fn(
+                    fmi2ComponentEnvironment,
+                    fmi2String,
+                    Status,
+                    fmi2String,
+                    fmi2String,
+                    ...
+                ),
+            >(logger)),
+            allocate_memory: None,
+            free_memory: None,
+            step_finished: None,
+            component_environment: std::ptr::null_mut(),
+        }
+    };
     let (name, guid, res) = (
         CString::new("fragile").unwrap(),
         CString::new(guid).unwrap(),
@@ -76,7 +113,15 @@ fn panics_are_contained_and_errors_escalate() {
     );
     unsafe {
         use fmi2::*;
-        let c = fmi2Instantiate(name.as_ptr(), FMI2_COSIMULATION, guid.as_ptr(), res.as_ptr(), &callbacks, 0, 0);
+        let c = fmi2Instantiate(
+            name.as_ptr(),
+            FMI2_COSIMULATION,
+            guid.as_ptr(),
+            res.as_ptr(),
+            &callbacks,
+            0,
+            0,
+        );
         assert!(!c.is_null());
         assert_eq!(fmi2SetupExperiment(c, 0, 0.0, 0.0, 0, 0.0), Status::Ok);
         assert_eq!(fmi2EnterInitializationMode(c), Status::Ok);
@@ -101,9 +146,19 @@ fn panics_are_contained_and_errors_escalate() {
         fmi2FreeInstance(c);
     }
     let log = LOG.lock().unwrap().clone();
-    let has = |status: Status, needle: &str| log.iter().any(|(s, m)| *s == status && m.contains(needle));
-    assert!(has(Status::Warning, "x is 50%%"), "percent signs are escaped for printf-style masters: {log:?}");
+    let has =
+        |status: Status, needle: &str| log.iter().any(|(s, m)| *s == status && m.contains(needle));
+    assert!(
+        has(Status::Warning, "x is 50%%"),
+        "percent signs are escaped for printf-style masters: {log:?}"
+    );
     assert!(has(Status::Error, "x below -1"), "{log:?}");
-    assert!(has(Status::Fatal, "internal error contained: x = 5 is too large"), "{log:?}");
+    assert!(
+        has(
+            Status::Fatal,
+            "internal error contained: x = 5 is too large"
+        ),
+        "{log:?}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

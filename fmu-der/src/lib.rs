@@ -203,6 +203,9 @@ fmi_export::export_fmu!(Der);
 mod golden {
     #[test]
     fn model_description_matches_the_golden_copy() {
-        fmi_export::assert_golden::<super::Der>(concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription.xml"));
+        fmi_export::assert_golden::<super::Der>(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/modelDescription.xml"
+        ));
     }
 }

@@ -307,6 +307,9 @@ fmi_export::export_fmu!(Grid);
 mod golden {
     #[test]
     fn model_description_matches_the_golden_copy() {
-        fmi_export::assert_golden::<super::Grid>(concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription.xml"));
+        fmi_export::assert_golden::<super::Grid>(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/modelDescription.xml"
+        ));
     }
 }

@@ -172,6 +172,9 @@ mod tests {
 mod golden {
     #[test]
     fn model_description_matches_the_golden_copy() {
-        fmi_export::assert_golden::<super::Operator>(concat!(env!("CARGO_MANIFEST_DIR"), "/modelDescription.xml"));
+        fmi_export::assert_golden::<super::Operator>(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/modelDescription.xml"
+        ));
     }
 }

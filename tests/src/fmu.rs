@@ -143,9 +143,10 @@ fn unique_dir(stem: &str) -> PathBuf {
 impl Fmu {
     /// Unpack `path` into a fresh temporary directory and load it.
     pub fn load(path: &Path) -> Result<Fmu, Error> {
-        let file = std::fs::File::open(path).map_err(|e| Error(format!("cannot open {}: {e}", path.display())))?;
-        let mut archive =
-            zip::ZipArchive::new(file).map_err(|e| Error(format!("{} is not an FMU archive: {e}", path.display())))?;
+        let file = std::fs::File::open(path)
+            .map_err(|e| Error(format!("cannot open {}: {e}", path.display())))?;
+        let mut archive = zip::ZipArchive::new(file)
+            .map_err(|e| Error(format!("{} is not an FMU archive: {e}", path.display())))?;
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("fmu");
         let dir = unique_dir(stem);
         archive
@@ -157,25 +158,37 @@ impl Fmu {
     /// Load an FMU already unpacked in `dir` (the directory is removed when the `Fmu` drops).
     pub fn load_dir(dir: PathBuf) -> Result<Fmu, Error> {
         let xml_path = dir.join("modelDescription.xml");
-        let xml = std::fs::read_to_string(&xml_path).map_err(|e| Error(format!("no modelDescription.xml: {e}")))?;
+        let xml = std::fs::read_to_string(&xml_path)
+            .map_err(|e| Error(format!("no modelDescription.xml: {e}")))?;
         let description = ModelDescription::from_xml(&xml).map_err(|e| Error(e.to_string()))?;
         let Some(id) = description.model_identifier().map(str::to_owned) else {
             return err("the FMU does not support Co-Simulation");
         };
-        let binary = dir.join("binaries").join("linux64").join(format!("{id}.so"));
+        let binary = dir
+            .join("binaries")
+            .join("linux64")
+            .join(format!("{id}.so"));
         if !binary.is_file() {
             return err(format!("missing binary binaries/linux64/{id}.so"));
         }
-        let c_path = CString::new(binary.to_string_lossy().as_bytes()).map_err(|_| Error("bad path".into()))?;
+        let c_path = CString::new(binary.to_string_lossy().as_bytes())
+            .map_err(|_| Error("bad path".into()))?;
         // SAFETY: dlopen/dlsym with valid C strings; the handle is closed in Drop.
         unsafe {
             let library = libc::dlopen(c_path.as_ptr(), libc::RTLD_NOW | libc::RTLD_LOCAL);
             if library.is_null() {
-                let why = CStr::from_ptr(libc::dlerror()).to_string_lossy().into_owned();
+                let why = CStr::from_ptr(libc::dlerror())
+                    .to_string_lossy()
+                    .into_owned();
                 return err(format!("cannot load {}: {why}", binary.display()));
             }
             match Api::resolve(library) {
-                Ok(api) => Ok(Fmu { description, dir, api, library }),
+                Ok(api) => Ok(Fmu {
+                    description,
+                    dir,
+                    api,
+                    library,
+                }),
                 Err(e) => {
                     libc::dlclose(library);
                     err(e)
@@ -202,8 +215,12 @@ impl Fmu {
     pub fn version_and_platform(&self) -> (String, String) {
         // SAFETY: both return static C strings.
         unsafe {
-            let v = CStr::from_ptr((self.api.get_version)()).to_string_lossy().into_owned();
-            let p = CStr::from_ptr((self.api.get_types_platform)()).to_string_lossy().into_owned();
+            let v = CStr::from_ptr((self.api.get_version)())
+                .to_string_lossy()
+                .into_owned();
+            let p = CStr::from_ptr((self.api.get_types_platform)())
+                .to_string_lossy()
+                .into_owned();
             (v, p)
         }
     }
@@ -213,7 +230,12 @@ impl Fmu {
         self.description
             .variable(name)
             .map(|v| v.value_reference)
-            .ok_or_else(|| Error(format!("{} has no variable '{name}'", self.description.model_name)))
+            .ok_or_else(|| {
+                Error(format!(
+                    "{} has no variable '{name}'",
+                    self.description.model_name
+                ))
+            })
     }
 
     /// Instantiate with the description's GUID and the unpacked resources.
@@ -223,8 +245,18 @@ impl Fmu {
     }
 
     /// Instantiate with explicit GUID, resource URI and `fmuType` (for tests of bad calls).
-    pub fn instantiate_with(self: &Arc<Self>, name: &str, guid: &str, resources: &str, fmu_type: i32) -> Result<Instance, Error> {
-        let sink = Box::new(LogSink { instance: name.to_owned(), records: Mutex::new(Vec::new()), echo: std::env::var_os("DVPP_FMU_LOG").is_some() });
+    pub fn instantiate_with(
+        self: &Arc<Self>,
+        name: &str,
+        guid: &str,
+        resources: &str,
+        fmu_type: i32,
+    ) -> Result<Instance, Error> {
+        let sink = Box::new(LogSink {
+            instance: name.to_owned(),
+            records: Mutex::new(Vec::new()),
+            echo: std::env::var_os("DVPP_FMU_LOG").is_some(),
+        });
         let sink_ptr = Box::into_raw(sink);
         let callbacks = Box::new(CallbackFunctions {
             logger: Some(log_callback),
@@ -236,15 +268,34 @@ impl Fmu {
         let (c_name, c_guid, c_res) = (cstring(name)?, cstring(guid)?, cstring(resources)?);
         // SAFETY: valid C strings and a callbacks struct that lives as long as the instance.
         let component = unsafe {
-            (self.api.instantiate)(c_name.as_ptr(), fmu_type, c_guid.as_ptr(), c_res.as_ptr(), &*callbacks, 0, 0)
+            (self.api.instantiate)(
+                c_name.as_ptr(),
+                fmu_type,
+                c_guid.as_ptr(),
+                c_res.as_ptr(),
+                &*callbacks,
+                0,
+                0,
+            )
         };
         // SAFETY: we own the sink until the instance is dropped.
         let sink = unsafe { Box::from_raw(sink_ptr) };
         if component.is_null() {
-            let last = sink.records.lock().unwrap().last().map(|r| r.message.clone()).unwrap_or_default();
+            let last = sink
+                .records
+                .lock()
+                .unwrap()
+                .last()
+                .map(|r| r.message.clone())
+                .unwrap_or_default();
             return err(format!("fmi2Instantiate of '{name}' returned NULL: {last}"));
         }
-        Ok(Instance { fmu: Arc::clone(self), component, sink, callbacks })
+        Ok(Instance {
+            fmu: Arc::clone(self),
+            component,
+            sink,
+            callbacks,
+        })
     }
 }
 
@@ -274,13 +325,34 @@ struct LogSink {
     echo: bool,
 }
 
-unsafe extern "C" fn log_callback(env: *mut c_void, _name: *const c_char, status: c_int, category: *const c_char, message: *const c_char) {
-    let Some(sink) = (env as *const LogSink).as_ref() else { return };
-    let text = |p: *const c_char| if p.is_null() { String::new() } else { CStr::from_ptr(p).to_string_lossy().into_owned() };
+unsafe extern "C" fn log_callback(
+    env: *mut c_void,
+    _name: *const c_char,
+    status: c_int,
+    category: *const c_char,
+    message: *const c_char,
+) {
+    let Some(sink) = (env as *const LogSink).as_ref() else {
+        return;
+    };
+    let text = |p: *const c_char| {
+        if p.is_null() {
+            String::new()
+        } else {
+            CStr::from_ptr(p).to_string_lossy().into_owned()
+        }
+    };
     // Messages arrive as printf formats; ours carry no arguments, so `%%` is the only escape.
-    let record = LogRecord { status: Status::from_c(status), category: text(category), message: text(message).replace("%%", "%") };
+    let record = LogRecord {
+        status: Status::from_c(status),
+        category: text(category),
+        message: text(message).replace("%%", "%"),
+    };
     if sink.echo {
-        eprintln!("[{}] {:?} {}: {}", sink.instance, record.status, record.category, record.message);
+        eprintln!(
+            "[{}] {:?} {}: {}",
+            sink.instance, record.status, record.category, record.message
+        );
     }
     if let Ok(mut r) = sink.records.lock() {
         r.push(record);
@@ -316,12 +388,21 @@ impl Instance {
 
     /// Everything the FMU logged so far.
     pub fn log(&self) -> Vec<LogRecord> {
-        self.sink.records.lock().map(|r| r.clone()).unwrap_or_default()
+        self.sink
+            .records
+            .lock()
+            .map(|r| r.clone())
+            .unwrap_or_default()
     }
 
     /// The last message the FMU logged.
     pub fn last_message(&self) -> Option<String> {
-        self.sink.records.lock().ok()?.last().map(|r| r.message.clone())
+        self.sink
+            .records
+            .lock()
+            .ok()?
+            .last()
+            .map(|r| r.message.clone())
     }
 
     fn api(&self) -> &Api {
@@ -329,16 +410,28 @@ impl Instance {
     }
 
     pub fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> Status {
-        let c: Vec<CString> = categories.iter().map(|s| CString::new(*s).unwrap()).collect();
+        let c: Vec<CString> = categories
+            .iter()
+            .map(|s| CString::new(*s).unwrap())
+            .collect();
         let p: Vec<*const c_char> = c.iter().map(|s| s.as_ptr()).collect();
         // SAFETY: arrays of the stated length.
-        Status::from_c(unsafe { (self.api().set_debug_logging)(self.component, on as c_int, p.len(), p.as_ptr()) })
+        Status::from_c(unsafe {
+            (self.api().set_debug_logging)(self.component, on as c_int, p.len(), p.as_ptr())
+        })
     }
 
     pub fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> Status {
         // SAFETY: plain values.
         Status::from_c(unsafe {
-            (self.api().setup_experiment)(self.component, 0, 0.0, start, stop.is_some() as c_int, stop.unwrap_or(0.0))
+            (self.api().setup_experiment)(
+                self.component,
+                0,
+                0.0,
+                start,
+                stop.is_some() as c_int,
+                stop.unwrap_or(0.0),
+            )
         })
     }
 
@@ -365,31 +458,41 @@ impl Instance {
     pub fn get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> Status {
         assert_eq!(vrs.len(), out.len());
         // SAFETY: arrays of equal, stated length.
-        Status::from_c(unsafe { (self.api().get_real)(self.component, vrs.as_ptr(), vrs.len(), out.as_mut_ptr()) })
+        Status::from_c(unsafe {
+            (self.api().get_real)(self.component, vrs.as_ptr(), vrs.len(), out.as_mut_ptr())
+        })
     }
 
     pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> Status {
         assert_eq!(vrs.len(), values.len());
         // SAFETY: arrays of equal, stated length.
-        Status::from_c(unsafe { (self.api().set_real)(self.component, vrs.as_ptr(), vrs.len(), values.as_ptr()) })
+        Status::from_c(unsafe {
+            (self.api().set_real)(self.component, vrs.as_ptr(), vrs.len(), values.as_ptr())
+        })
     }
 
     pub fn get_integer(&mut self, vrs: &[u32], out: &mut [i32]) -> Status {
         assert_eq!(vrs.len(), out.len());
         // SAFETY: arrays of equal, stated length.
-        Status::from_c(unsafe { (self.api().get_integer)(self.component, vrs.as_ptr(), vrs.len(), out.as_mut_ptr()) })
+        Status::from_c(unsafe {
+            (self.api().get_integer)(self.component, vrs.as_ptr(), vrs.len(), out.as_mut_ptr())
+        })
     }
 
     pub fn set_integer(&mut self, vrs: &[u32], values: &[i32]) -> Status {
         assert_eq!(vrs.len(), values.len());
         // SAFETY: arrays of equal, stated length.
-        Status::from_c(unsafe { (self.api().set_integer)(self.component, vrs.as_ptr(), vrs.len(), values.as_ptr()) })
+        Status::from_c(unsafe {
+            (self.api().set_integer)(self.component, vrs.as_ptr(), vrs.len(), values.as_ptr())
+        })
     }
 
     pub fn get_boolean(&mut self, vrs: &[u32], out: &mut [bool]) -> Status {
         let mut raw = vec![0; vrs.len()];
         // SAFETY: arrays of equal, stated length.
-        let s = Status::from_c(unsafe { (self.api().get_boolean)(self.component, vrs.as_ptr(), vrs.len(), raw.as_mut_ptr()) });
+        let s = Status::from_c(unsafe {
+            (self.api().get_boolean)(self.component, vrs.as_ptr(), vrs.len(), raw.as_mut_ptr())
+        });
         for (o, r) in out.iter_mut().zip(raw) {
             *o = r != 0;
         }
@@ -399,15 +502,31 @@ impl Instance {
     pub fn set_boolean(&mut self, vrs: &[u32], values: &[bool]) -> Status {
         let raw: Vec<c_int> = values.iter().map(|&b| b as c_int).collect();
         // SAFETY: arrays of equal, stated length.
-        Status::from_c(unsafe { (self.api().set_boolean)(self.component, vrs.as_ptr(), vrs.len(), raw.as_ptr()) })
+        Status::from_c(unsafe {
+            (self.api().set_boolean)(self.component, vrs.as_ptr(), vrs.len(), raw.as_ptr())
+        })
     }
 
     pub fn get_string(&mut self, vrs: &[u32]) -> (Status, Vec<String>) {
         let mut raw = vec![std::ptr::null(); vrs.len()];
         // SAFETY: arrays of equal length; strings copied before the next call.
         unsafe {
-            let s = Status::from_c((self.api().get_string)(self.component, vrs.as_ptr(), vrs.len(), raw.as_mut_ptr()));
-            let v = raw.iter().map(|&p| if p.is_null() { String::new() } else { CStr::from_ptr(p).to_string_lossy().into_owned() }).collect();
+            let s = Status::from_c((self.api().get_string)(
+                self.component,
+                vrs.as_ptr(),
+                vrs.len(),
+                raw.as_mut_ptr(),
+            ));
+            let v = raw
+                .iter()
+                .map(|&p| {
+                    if p.is_null() {
+                        String::new()
+                    } else {
+                        CStr::from_ptr(p).to_string_lossy().into_owned()
+                    }
+                })
+                .collect();
             (s, v)
         }
     }
@@ -416,7 +535,9 @@ impl Instance {
         let c: Vec<CString> = values.iter().map(|s| CString::new(*s).unwrap()).collect();
         let p: Vec<*const c_char> = c.iter().map(|s| s.as_ptr()).collect();
         // SAFETY: arrays of equal, stated length.
-        Status::from_c(unsafe { (self.api().set_string)(self.component, vrs.as_ptr(), vrs.len(), p.as_ptr()) })
+        Status::from_c(unsafe {
+            (self.api().set_string)(self.component, vrs.as_ptr(), vrs.len(), p.as_ptr())
+        })
     }
 
     pub fn do_step(&mut self, t: f64, h: f64) -> Status {
@@ -447,12 +568,21 @@ impl Instance {
         let mut size = 0usize;
         // SAFETY: out-pointers valid; buffer of the reported size.
         unsafe {
-            let st = Status::from_c((self.api().serialized_fmu_state_size)(self.component, s.0, &mut size));
+            let st = Status::from_c((self.api().serialized_fmu_state_size)(
+                self.component,
+                s.0,
+                &mut size,
+            ));
             if st > Status::Warning {
                 return Err(st);
             }
             let mut buf = vec![0u8; size];
-            let st = Status::from_c((self.api().serialize_fmu_state)(self.component, s.0, buf.as_mut_ptr() as *mut c_char, size));
+            let st = Status::from_c((self.api().serialize_fmu_state)(
+                self.component,
+                s.0,
+                buf.as_mut_ptr() as *mut c_char,
+                size,
+            ));
             if st > Status::Warning {
                 return Err(st);
             }
@@ -465,7 +595,12 @@ impl Instance {
         let mut s: FmuState = std::ptr::null_mut();
         // SAFETY: buffer of the stated length; out-pointer to a null state.
         let st = Status::from_c(unsafe {
-            (self.api().deserialize_fmu_state)(self.component, bytes.as_ptr() as *const c_char, bytes.len(), &mut s)
+            (self.api().deserialize_fmu_state)(
+                self.component,
+                bytes.as_ptr() as *const c_char,
+                bytes.len(),
+                &mut s,
+            )
         });
         (st, (!s.is_null()).then_some(SavedState(s)))
     }
@@ -477,9 +612,38 @@ impl Instance {
         unsafe {
             let a = self.api();
             vec![
-                ("fmi2GetDirectionalDerivative", (a.get_directional_derivative)(self.component, vr.as_ptr(), 1, vr.as_ptr(), 1, x.as_ptr(), x.as_mut_ptr())),
-                ("fmi2SetRealInputDerivatives", (a.set_real_input_derivatives)(self.component, vr.as_ptr(), 1, order.as_ptr(), x.as_ptr())),
-                ("fmi2GetRealOutputDerivatives", (a.get_real_output_derivatives)(self.component, vr.as_ptr(), 1, order.as_ptr(), x.as_mut_ptr())),
+                (
+                    "fmi2GetDirectionalDerivative",
+                    (a.get_directional_derivative)(
+                        self.component,
+                        vr.as_ptr(),
+                        1,
+                        vr.as_ptr(),
+                        1,
+                        x.as_ptr(),
+                        x.as_mut_ptr(),
+                    ),
+                ),
+                (
+                    "fmi2SetRealInputDerivatives",
+                    (a.set_real_input_derivatives)(
+                        self.component,
+                        vr.as_ptr(),
+                        1,
+                        order.as_ptr(),
+                        x.as_ptr(),
+                    ),
+                ),
+                (
+                    "fmi2GetRealOutputDerivatives",
+                    (a.get_real_output_derivatives)(
+                        self.component,
+                        vr.as_ptr(),
+                        1,
+                        order.as_ptr(),
+                        x.as_mut_ptr(),
+                    ),
+                ),
                 ("fmi2CancelStep", (a.cancel_step)(self.component)),
             ]
             .into_iter()

@@ -41,29 +41,48 @@ pub fn ticks(seconds: f64) -> i64 {
 }
 
 /// Simulate `fmu` alone from its default experiment (or `stop`/`step`), recording every output.
-pub fn simulate_alone(fmu: &Arc<Fmu>, stop: Option<f64>, step: Option<f64>, progress: bool) -> Result<Table, Error> {
+pub fn simulate_alone(
+    fmu: &Arc<Fmu>,
+    stop: Option<f64>,
+    step: Option<f64>,
+    progress: bool,
+) -> Result<Table, Error> {
     let progress = progress && std::io::stderr().is_terminal();
-    let de = fmu.description.default_experiment.clone().unwrap_or_default();
+    let de = fmu
+        .description
+        .default_experiment
+        .clone()
+        .unwrap_or_default();
     let start = ticks(de.start_time.unwrap_or(0.0));
     let stop = ticks(stop.or(de.stop_time).unwrap_or(1.0));
     let step = ticks(step.or(de.step_size).unwrap_or(1e-3));
     if step <= 0 || stop <= start {
-        return Err(Error(format!("bad experiment: start {start} ns, stop {stop} ns, step {step} ns")));
+        return Err(Error(format!(
+            "bad experiment: start {start} ns, stop {stop} ns, step {step} ns"
+        )));
     }
     let outputs: Vec<_> = fmu
         .description
         .model_variables
         .variables
         .iter()
-        .filter(|v| v.causality() == Causality::Output && v.base_type() == model_description::BaseType::Real)
+        .filter(|v| {
+            v.causality() == Causality::Output && v.base_type() == model_description::BaseType::Real
+        })
         .collect();
     let vrs: Vec<u32> = outputs.iter().map(|v| v.value_reference).collect();
-    let mut table = Table { columns: vec!["time".into()], rows: Vec::new() };
+    let mut table = Table {
+        columns: vec!["time".into()],
+        rows: Vec::new(),
+    };
     table.columns.extend(outputs.iter().map(|v| v.name.clone()));
 
     let mut inst = fmu.instantiate(&fmu.description.model_name)?;
     let fail = |inst: &crate::Instance, what: &str, s: Status| {
-        Error(format!("{what} returned {s:?}: {}", inst.last_message().unwrap_or_default()))
+        Error(format!(
+            "{what} returned {s:?}: {}",
+            inst.last_message().unwrap_or_default()
+        ))
     };
     let secs = |t: i64| t as f64 / NS as f64;
     let s = inst.setup_experiment(secs(start), Some(secs(stop)));
@@ -71,8 +90,14 @@ pub fn simulate_alone(fmu: &Arc<Fmu>, stop: Option<f64>, step: Option<f64>, prog
         return Err(fail(&inst, "fmi2SetupExperiment", s));
     }
     for (what, s) in [
-        ("fmi2EnterInitializationMode", inst.enter_initialization_mode()),
-        ("fmi2ExitInitializationMode", inst.exit_initialization_mode()),
+        (
+            "fmi2EnterInitializationMode",
+            inst.enter_initialization_mode(),
+        ),
+        (
+            "fmi2ExitInitializationMode",
+            inst.exit_initialization_mode(),
+        ),
     ] {
         if s > Status::Warning {
             return Err(fail(&inst, what, s));

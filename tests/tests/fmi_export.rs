@@ -24,7 +24,11 @@ fn binaries_export_all_34_functions_and_need_only_the_c_runtime() {
         let fmu = load(id); // resolves every function or fails
         assert_eq!(fmu.version_and_platform(), ("2.0".into(), "default".into()));
         let so = fmu.dir.join(format!("binaries/linux64/{id}.so"));
-        let out = std::process::Command::new("readelf").arg("-d").arg(&so).output().expect("readelf");
+        let out = std::process::Command::new("readelf")
+            .arg("-d")
+            .arg(&so)
+            .output()
+            .expect("readelf");
         let text = String::from_utf8_lossy(&out.stdout);
         let needed: Vec<&str> = text
             .lines()
@@ -34,8 +38,15 @@ fn binaries_export_all_34_functions_and_need_only_the_c_runtime() {
         assert!(!needed.is_empty(), "{id}: no NEEDED entries read");
         for lib in &needed {
             assert!(
-                ["libc.so.6", "libm.so.6", "libgcc_s.so.1", "ld-linux-x86-64.so.2", "libpthread.so.0", "libdl.so.2"]
-                    .contains(lib),
+                [
+                    "libc.so.6",
+                    "libm.so.6",
+                    "libgcc_s.so.1",
+                    "ld-linux-x86-64.so.2",
+                    "libpthread.so.0",
+                    "libdl.so.2"
+                ]
+                .contains(lib),
                 "{id} depends on {lib}, which is not part of the C runtime"
             );
         }
@@ -51,26 +62,43 @@ fn illegal_call_sequences_return_error_and_reset_recovers() {
         let mut buf = vec![0.0; outs.len()];
         // Each call below is illegal in the state the instance is in; each must log and return
         // fmi2Error, then fmi2Reset brings the instance back to `instantiated`.
-        let cases: Vec<(&str, Box<dyn Fn(&mut Instance) -> Status>)> = vec![
-            ("fmi2DoStep before initialization", Box::new(|i| i.do_step(0.0, 1e-3))),
-            ("fmi2ExitInitializationMode before entering", Box::new(|i| i.exit_initialization_mode())),
-            ("fmi2Terminate before initialization", Box::new(|i| i.terminate())),
-            ("fmi2GetReal while instantiated", Box::new(|i| i.get_real(&[0], &mut [0.0]))),
+        type Call = fn(&mut Instance) -> Status;
+        let cases: [(&str, Call); 4] = [
+            ("fmi2DoStep before initialization", |i| i.do_step(0.0, 1e-3)),
+            ("fmi2ExitInitializationMode before entering", |i| {
+                i.exit_initialization_mode()
+            }),
+            ("fmi2Terminate before initialization", |i| i.terminate()),
+            ("fmi2GetReal while instantiated", |i| {
+                i.get_real(&[0], &mut [0.0])
+            }),
         ];
         for (what, call) in &cases {
             assert_eq!(call(&mut i), Status::Error, "{id}: {what}");
             assert_logged(&i, "illegal call sequence");
             // In the error state only inspection, reset and state restore are allowed.
-            assert_eq!(i.do_step(0.0, 1e-3), Status::Error, "{id}: step in error state");
+            assert_eq!(
+                i.do_step(0.0, 1e-3),
+                Status::Error,
+                "{id}: step in error state"
+            );
             assert_eq!(i.reset(), Status::Ok, "{id}: reset after {what}");
         }
         // After initialization: setup and a second initialization are illegal.
         assert_eq!(i.setup_experiment(0.0, None), Status::Ok);
         assert_eq!(i.enter_initialization_mode(), Status::Ok);
-        assert_eq!(i.enter_initialization_mode(), Status::Error, "{id}: enter twice");
+        assert_eq!(
+            i.enter_initialization_mode(),
+            Status::Error,
+            "{id}: enter twice"
+        );
         assert_eq!(i.reset(), Status::Ok);
         let mut i = initialized(&fmu, "after-init");
-        assert_eq!(i.setup_experiment(0.0, None), Status::Error, "{id}: setup after init");
+        assert_eq!(
+            i.setup_experiment(0.0, None),
+            Status::Error,
+            "{id}: setup after init"
+        );
         assert_eq!(i.reset(), Status::Ok);
         // The instance is fully usable again.
         assert_eq!(i.setup_experiment(0.0, None), Status::Ok);
@@ -80,7 +108,11 @@ fn illegal_call_sequences_return_error_and_reset_recovers() {
         assert_eq!(i.get_real(&outs, &mut buf), Status::Ok);
         assert!(buf.iter().all(|x| x.is_finite()));
         assert_eq!(i.terminate(), Status::Ok);
-        assert_eq!(i.do_step(1e-3, 1e-3), Status::Error, "{id}: step after terminate");
+        assert_eq!(
+            i.do_step(1e-3, 1e-3),
+            Status::Error,
+            "{id}: step after terminate"
+        );
     }
 }
 
@@ -98,7 +130,12 @@ fn bad_values_are_rejected_and_change_nothing() {
         ("NaN input", p, f64::NAN, "not finite"),
         ("infinite input", p, f64::INFINITY, "not finite"),
         ("input out of range", mu, 2.0, "outside its range"),
-        ("fixed parameter after initialization", h, 3.0, "cannot be set"),
+        (
+            "fixed parameter after initialization",
+            h,
+            3.0,
+            "cannot be set",
+        ),
         ("an output", theta, 0.5, "cannot be set"),
     ];
     for (what, vr, value, message) in cases {
@@ -106,11 +143,23 @@ fn bad_values_are_rejected_and_change_nothing() {
         let mut before = [0.0];
         assert_eq!(i.get_real(&[vr], &mut before), Status::Ok);
         // A batch with one bad value must not apply the good one either.
-        assert_eq!(i.set_real(&[q, vr], &[0.123, value]), Status::Error, "{what}");
+        assert_eq!(
+            i.set_real(&[q, vr], &[0.123, value]),
+            Status::Error,
+            "{what}"
+        );
         assert_logged(&i, message);
         let mut after = [0.0, 0.0];
-        assert_eq!(i.get_real(&[vr, q], &mut after), Status::Ok, "{what}: get in error state");
-        assert_eq!(after[0].to_bits(), before[0].to_bits(), "{what}: value changed");
+        assert_eq!(
+            i.get_real(&[vr, q], &mut after),
+            Status::Ok,
+            "{what}: get in error state"
+        );
+        assert_eq!(
+            after[0].to_bits(),
+            before[0].to_bits(),
+            "{what}: value changed"
+        );
         assert_eq!(after[1], 0.0, "{what}: partial batch applied");
     }
     let mut i = fmu.instantiate("unknown-vr").unwrap();
@@ -146,8 +195,6 @@ fn do_step_rejects_bad_step_sizes_and_communication_points() {
 fn unsupported_optional_functions_log_and_return_error() {
     let fmu = load("dvpp_operator");
     for (name, status) in initialized(&fmu, "unsupported").call_unsupported() {
-        let mut i = initialized(&fmu, name);
-        let _ = &mut i;
         assert_eq!(status, Status::Error, "{name}");
     }
     let mut i = initialized(&fmu, "unsupported-log");
@@ -162,7 +209,10 @@ fn status_queries_report_time_and_discard_the_rest() {
     let outs = real_outputs(&fmu);
     run(&mut i, &outs, 0.0, 0.25, 4);
     assert_eq!(i.last_successful_time(), (Status::Ok, 1.0));
-    assert_eq!(i.status_queries(), vec![Status::Ok, Status::Discard, Status::Ok, Status::Discard]);
+    assert_eq!(
+        i.status_queries(),
+        vec![Status::Ok, Status::Discard, Status::Ok, Status::Discard]
+    );
 }
 
 #[test]
@@ -170,16 +220,33 @@ fn instantiate_refuses_wrong_guid_missing_resources_and_model_exchange() {
     let fmu = load("dvpp_der");
     let uri = fmu.resource_uri();
     let guid = fmu.description.guid.clone();
-    let e = fmu.instantiate_with("bad-guid", "{00000000-0000-0000-0000-000000000000}", &uri, 1).err().unwrap();
+    let e = fmu
+        .instantiate_with(
+            "bad-guid",
+            "{00000000-0000-0000-0000-000000000000}",
+            &uri,
+            1,
+        )
+        .err()
+        .unwrap();
     assert!(e.0.contains("GUID mismatch"), "{e}");
     let missing = format!("file://{}/nowhere", std::env::temp_dir().display());
-    let e = fmu.instantiate_with("no-resources", &guid, &missing, 1).err().unwrap();
+    let e = fmu
+        .instantiate_with("no-resources", &guid, &missing, 1)
+        .err()
+        .unwrap();
     assert!(e.0.contains("missing resource file"), "{e}");
-    let e = fmu.instantiate_with("model-exchange", &guid, &uri, 0).err().unwrap();
+    let e = fmu
+        .instantiate_with("model-exchange", &guid, &uri, 0)
+        .err()
+        .unwrap();
     assert!(e.0.contains("Co-Simulation only"), "{e}");
     let e = fmu.instantiate_with("", &guid, &uri, 1).err().unwrap();
     assert!(e.0.contains("instanceName"), "{e}");
-    let e = fmu.instantiate_with("remote", &guid, "http://example.org/resources", 1).err().unwrap();
+    let e = fmu
+        .instantiate_with("remote", &guid, "http://example.org/resources", 1)
+        .err()
+        .unwrap();
     assert!(e.0.contains("not a file URI"), "{e}");
 }
 
@@ -189,10 +256,19 @@ fn resource_locations_are_decoded_in_every_file_uri_form() {
     let guid = fmu.description.guid.clone();
     let spaced = std::env::temp_dir().join(format!("dvpp res {}", std::process::id()));
     std::fs::create_dir_all(&spaced).unwrap();
-    std::fs::copy(fmu.dir.join("resources/config.toml"), spaced.join("config.toml")).unwrap();
+    std::fs::copy(
+        fmu.dir.join("resources/config.toml"),
+        spaced.join("config.toml"),
+    )
+    .unwrap();
     let path = spaced.display().to_string();
     let encoded = path.replace(' ', "%20");
-    for uri in [format!("file://{encoded}"), format!("file:{encoded}"), format!("file://localhost{encoded}/"), path.clone()] {
+    for uri in [
+        format!("file://{encoded}"),
+        format!("file:{encoded}"),
+        format!("file://localhost{encoded}/"),
+        path.clone(),
+    ] {
         let i = fmu.instantiate_with("uri", &guid, &uri, 1);
         assert!(i.is_ok(), "{uri}: {:?}", i.err());
     }
@@ -226,7 +302,11 @@ fn fmu_state_get_set_and_serialize_round_trip() {
 
         // Restore in the same instance.
         assert_eq!(a.set_state(&saved), Status::Ok);
-        assert_eq!(run(&mut a, &outs, 1.5, 1e-3, 500), expected, "{id}: set_state continuation");
+        assert_eq!(
+            run(&mut a, &outs, 1.5, 1e-3, 500),
+            expected,
+            "{id}: set_state continuation"
+        );
         assert_eq!(a.free_state(saved), Status::Ok);
 
         // Restore the serialized bytes in a fresh instance that was never initialized.
@@ -234,13 +314,21 @@ fn fmu_state_get_set_and_serialize_round_trip() {
         let (st, restored) = b.deserialize_state(&bytes);
         assert_eq!(st, Status::Ok);
         assert_eq!(b.set_state(&restored.unwrap()), Status::Ok);
-        assert_eq!(run(&mut b, &outs, 1.5, 1e-3, 500), expected, "{id}: deserialized continuation");
+        assert_eq!(
+            run(&mut b, &outs, 1.5, 1e-3, 500),
+            expected,
+            "{id}: deserialized continuation"
+        );
 
         // Corrupted, truncated and foreign bytes are refused.
         let mut corrupt = bytes.clone();
         let mid = corrupt.len() / 2;
         corrupt[mid] ^= 0x40;
-        for (what, bad) in [("corrupted", corrupt), ("truncated", bytes[..bytes.len() - 9].to_vec()), ("empty", vec![])] {
+        for (what, bad) in [
+            ("corrupted", corrupt),
+            ("truncated", bytes[..bytes.len() - 9].to_vec()),
+            ("empty", vec![]),
+        ] {
             let mut c = fmu.instantiate(what).unwrap();
             let (st, s) = c.deserialize_state(&bad);
             assert_eq!(st, Status::Error, "{id}: {what} bytes accepted");
@@ -254,7 +342,11 @@ fn fmu_state_get_set_and_serialize_round_trip() {
     let (_, s) = g.get_state();
     let grid_bytes = g.serialize_state(&s.unwrap()).unwrap();
     let mut d = der.instantiate("d").unwrap();
-    assert_eq!(d.deserialize_state(&grid_bytes).0, Status::Error, "a grid state restored into a DER");
+    assert_eq!(
+        d.deserialize_state(&grid_bytes).0,
+        Status::Error,
+        "a grid state restored into a DER"
+    );
 }
 
 #[test]
@@ -269,7 +361,11 @@ fn error_state_recovers_through_set_fmu_state() {
     assert_eq!(i.set_state(&saved), Status::Ok);
     let theta = fmu.vr("der[1].theta").unwrap();
     assert_eq!(i.set_real(&[theta], &[f64::NAN]), Status::Error);
-    assert_eq!(i.do_step(0.1, 1e-3), Status::Error, "stepping in the error state");
+    assert_eq!(
+        i.do_step(0.1, 1e-3),
+        Status::Error,
+        "stepping in the error state"
+    );
     assert_eq!(i.set_state(&saved), Status::Ok);
     assert_eq!(run(&mut i, &outs, 0.1, 1e-3, 10), expected);
 }
@@ -282,7 +378,15 @@ fn instances_in_threads_match_one_alone() {
     let handles: Vec<_> = (0..2)
         .map(|k| {
             let (fmu, outs) = (Arc::clone(&fmu), outs.clone());
-            std::thread::spawn(move || run(&mut initialized(&fmu, &format!("thread{k}")), &outs, 0.0, 1e-3, 3000))
+            std::thread::spawn(move || {
+                run(
+                    &mut initialized(&fmu, &format!("thread{k}")),
+                    &outs,
+                    0.0,
+                    1e-3,
+                    3000,
+                )
+            })
         })
         .collect();
     for h in handles {
@@ -298,7 +402,16 @@ fn variable_communication_steps_are_honoured_exactly() {
     let (mut i, _) = der_stepped(&fmu, "variable-steps");
     let vr = |n: &str| fmu.vr(n).unwrap();
     let mut par = [0.0; 5];
-    i.get_real(&[vr("Tdes.H"), vr("Tdes.D"), vr("S_base"), vr("S_dvpp"), vr("mu_p")], &mut par);
+    i.get_real(
+        &[
+            vr("Tdes.H"),
+            vr("Tdes.D"),
+            vr("S_base"),
+            vr("S_dvpp"),
+            vr("mu_p"),
+        ],
+        &mut par,
+    );
     let [h_in, d, s_base, s_dvpp, mu] = par;
     let dp = (0.4 - 0.3) * s_base / s_dvpp;
     let steps = [1e-4, 1e-2, 3e-3, 1e-3, 2.5e-2, 7e-4, 1e-2];
@@ -310,7 +423,11 @@ fn variable_communication_steps_are_honoured_exactly() {
         let mut df = [0.0];
         i.get_real(&[vr("df")], &mut df);
         let analytic = -dp / (mu * d) * (1.0 - (-d * t / h_in).exp());
-        assert!((df[0] - analytic).abs() < 1e-12, "t = {t}: {} vs {analytic}", df[0]);
+        assert!(
+            (df[0] - analytic).abs() < 1e-12,
+            "t = {t}: {} vs {analytic}",
+            df[0]
+        );
     }
 }
 
@@ -318,9 +435,15 @@ fn variable_communication_steps_are_honoured_exactly() {
 fn debug_logging_categories() {
     let fmu = load("dvpp_operator");
     let mut i = fmu.instantiate("logging").unwrap();
-    assert_eq!(i.set_debug_logging(true, &["logEvents", "logStatusError"]), Status::Ok);
+    assert_eq!(
+        i.set_debug_logging(true, &["logEvents", "logStatusError"]),
+        Status::Ok
+    );
     assert_eq!(i.set_debug_logging(false, &[]), Status::Ok);
-    assert_eq!(i.set_debug_logging(true, &["logNoSuchCategory"]), Status::Error);
+    assert_eq!(
+        i.set_debug_logging(true, &["logNoSuchCategory"]),
+        Status::Error
+    );
     assert_logged(&i, "unknown log category 'logNoSuchCategory'");
 }
 
@@ -328,7 +451,10 @@ fn debug_logging_categories() {
 /// the parent test starts this test binary with the file names in the environment).
 #[test]
 fn restore_in_child_process() {
-    let (Some(state), Some(out)) = (std::env::var_os("DVPP_STATE_IN"), std::env::var_os("DVPP_OUTPUTS_OUT")) else {
+    let (Some(state), Some(out)) = (
+        std::env::var_os("DVPP_STATE_IN"),
+        std::env::var_os("DVPP_OUTPUTS_OUT"),
+    ) else {
         return;
     };
     let fmu = load("dvpp_grid");
@@ -338,7 +464,11 @@ fn restore_in_child_process() {
     assert_eq!(i.set_state(&s.unwrap()), Status::Ok);
     let outs = real_outputs(&fmu);
     let values = run(&mut i, &outs, 2.0, 1e-3, 200);
-    let bytes: Vec<u8> = values.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+    let bytes: Vec<u8> = values
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
     std::fs::write(out, bytes).unwrap();
 }
 
@@ -350,7 +480,11 @@ fn serialized_state_restores_in_another_process() {
     run(&mut i, &outs, 0.0, 1e-3, 2000);
     let (_, s) = i.get_state();
     let bytes = i.serialize_state(&s.unwrap()).unwrap();
-    let expected: Vec<u8> = run(&mut i, &outs, 2.0, 1e-3, 200).iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+    let expected: Vec<u8> = run(&mut i, &outs, 2.0, 1e-3, 200)
+        .iter()
+        .flatten()
+        .flat_map(|x| x.to_le_bytes())
+        .collect();
     let dir = std::env::temp_dir().join(format!("dvpp-state-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (state_file, out_file) = (dir.join("state.bin"), dir.join("outputs.bin"));
@@ -363,6 +497,10 @@ fn serialized_state_restores_in_another_process() {
         .status()
         .unwrap();
     assert!(status.success());
-    assert_eq!(std::fs::read(&out_file).unwrap(), expected, "the other process continued differently");
+    assert_eq!(
+        std::fs::read(&out_file).unwrap(),
+        expected,
+        "the other process continued differently"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

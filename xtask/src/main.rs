@@ -1,5 +1,7 @@
 //! `cargo xtask`: builds and bundles the FMUs, runs the tests and the demo.
 
+mod docs;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
@@ -17,12 +19,17 @@ const PYTHON_PACKAGES: &[&str] = &["fmpy==0.3.32", "pytest==8.4.2"];
 type Result<T = ()> = std::result::Result<T, String>;
 
 fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("workspace root").to_path_buf()
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .parent()
+        .expect("workspace root")
+        .to_path_buf()
 }
 
 fn run(cmd: &mut Command) -> Result {
     let shown = format!("{cmd:?}");
-    let status = cmd.status().map_err(|e| format!("cannot run {shown}: {e}"))?;
+    let status = cmd
+        .status()
+        .map_err(|e| format!("cannot run {shown}: {e}"))?;
     if status.success() {
         Ok(())
     } else {
@@ -41,7 +48,8 @@ const USAGE: &str = "usage: cargo xtask <task>
 tasks:
   bundle   build the FMUs in release and write dist/default/<id>.fmu
   demo     bundle, then simulate every default FMU headless; results in results/
-  test     bundle, run the Rust tests, then the Python (fmpy) tests in target/venv";
+  test     bundle, run the Rust tests, then the Python (fmpy) tests in target/venv
+  docs     regenerate README.md's variable tables from the FMUs' model descriptions";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -49,6 +57,7 @@ fn main() -> ExitCode {
         Some("bundle") => bundle().map(|_| ()),
         Some("demo") => demo(),
         Some("test") => test(),
+        Some("docs") => write_docs(),
         _ => Err(USAGE.into()),
     };
     match result {
@@ -79,7 +88,10 @@ fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result {
         .output()
         .map_err(|e| format!("cannot run {}: {e}", describe.display()))?;
     if !output.status.success() {
-        return Err(format!("{package}: {}", String::from_utf8_lossy(&output.stderr).trim()));
+        return Err(format!(
+            "{package}: {}",
+            String::from_utf8_lossy(&output.stderr).trim()
+        ));
     }
     let library = release.join(format!("lib{}.so", package.replace('-', "_")));
     let binary = std::fs::read(&library).map_err(|e| format!("{}: {e}", library.display()))?;
@@ -102,7 +114,10 @@ fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result {
     entries.sort_by_key(|e| e.file_name());
     for entry in entries {
         let bytes = std::fs::read(entry.path()).map_err(|e| e.to_string())?;
-        add(&format!("resources/{}", entry.file_name().to_string_lossy()), &bytes)?;
+        add(
+            &format!("resources/{}", entry.file_name().to_string_lossy()),
+            &bytes,
+        )?;
     }
     zip.finish().map_err(|e| e.to_string())?;
     Ok(())
@@ -115,7 +130,11 @@ fn bundle() -> Result<Vec<PathBuf>> {
     std::fs::create_dir_all(&dist).map_err(|e| e.to_string())?;
     let mut written = Vec::new();
     for (package, id) in FMUS {
-        let resources = root().join("target").join("bundle").join(id).join("resources");
+        let resources = root()
+            .join("target")
+            .join("bundle")
+            .join(id)
+            .join("resources");
         std::fs::create_dir_all(&resources).map_err(|e| e.to_string())?;
         std::fs::write(
             resources.join("config.toml"),
@@ -124,7 +143,10 @@ fn bundle() -> Result<Vec<PathBuf>> {
         .map_err(|e| e.to_string())?;
         let out = dist.join(format!("{id}.fmu"));
         write_fmu(package, id, &resources, &out)?;
-        println!("bundled {}", out.strip_prefix(root()).unwrap_or(&out).display());
+        println!(
+            "bundled {}",
+            out.strip_prefix(root()).unwrap_or(&out).display()
+        );
         written.push(out);
     }
     Ok(written)
@@ -137,7 +159,16 @@ fn demo() -> Result {
     for fmu in &fmus {
         let stem = fmu.file_stem().unwrap().to_string_lossy().into_owned();
         run(cargo()
-            .args(["run", "--release", "--quiet", "--package", "dvpp-cosim", "--bin", "cosim", "--"])
+            .args([
+                "run",
+                "--release",
+                "--quiet",
+                "--package",
+                "dvpp-cosim",
+                "--bin",
+                "cosim",
+                "--",
+            ])
             .arg(fmu)
             .arg("--out")
             .arg(results.join(format!("{stem}.csv"))))?;
@@ -152,13 +183,24 @@ fn python_env() -> Result<PathBuf> {
     let python = venv.join("bin").join("python");
     let marker = venv.join(".installed");
     let wanted = PYTHON_PACKAGES.join(" ");
-    if std::fs::read_to_string(&marker).ok().as_deref() == Some(wanted.as_str()) && python.exists() {
+    if std::fs::read_to_string(&marker).ok().as_deref() == Some(wanted.as_str()) && python.exists()
+    {
         return Ok(python);
     }
     let system = std::env::var("PYTHON").unwrap_or_else(|_| "python3".into());
     println!("creating {} with {wanted}", venv.display());
-    run(Command::new(&system).args(["-m", "venv", "--clear"]).arg(&venv))?;
-    run(Command::new(&python).args(["-m", "pip", "install", "--quiet", "--disable-pip-version-check"]).args(PYTHON_PACKAGES))?;
+    run(Command::new(&system)
+        .args(["-m", "venv", "--clear"])
+        .arg(&venv))?;
+    run(Command::new(&python)
+        .args([
+            "-m",
+            "pip",
+            "install",
+            "--quiet",
+            "--disable-pip-version-check",
+        ])
+        .args(PYTHON_PACKAGES))?;
     std::fs::write(&marker, wanted).map_err(|e| e.to_string())?;
     Ok(python)
 }
@@ -167,12 +209,27 @@ fn test() -> Result {
     let started = std::time::Instant::now();
     bundle()?;
     let dist = root().join("dist").join("default");
-    run(cargo().args(["test", "--workspace"]).env("DVPP_DIST", &dist))?;
+    run(cargo()
+        .args(["test", "--workspace"])
+        .env("DVPP_DIST", &dist))?;
     let python = python_env()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "tests/python"])
         .current_dir(root())
         .env("DVPP_DIST", &dist))?;
-    println!("cargo xtask test: all passed in {:.0} s", started.elapsed().as_secs_f64());
+    println!(
+        "cargo xtask test: all passed in {:.0} s",
+        started.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+fn write_docs() -> Result {
+    let path = root().join("README.md");
+    let readme = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let packages: Vec<&str> = FMUS.iter().map(|(p, _)| *p).collect();
+    let fresh = docs::replace_section(&readme, &docs::section(&root(), &packages)?)?;
+    std::fs::write(&path, fresh).map_err(|e| e.to_string())?;
+    println!("updated the variable tables in README.md");
     Ok(())
 }

@@ -19,10 +19,18 @@ struct Args {
 
 fn parse() -> Result<Args, String> {
     let mut it = std::env::args().skip(1);
-    let mut args = Args { fmu: PathBuf::new(), stop: None, step: None, out: None };
+    let mut args = Args {
+        fmu: PathBuf::new(),
+        stop: None,
+        step: None,
+        out: None,
+    };
     let number = |flag: &str, v: Option<String>| -> Result<f64, String> {
         let v = v.ok_or(format!("{flag} needs a value"))?;
-        v.parse::<f64>().ok().filter(|x| x.is_finite() && *x > 0.0).ok_or(format!("{flag} {v}: not a positive number"))
+        v.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .ok_or(format!("{flag} {v}: not a positive number"))
     };
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -45,10 +53,24 @@ fn main() -> ExitCode {
     let result = parse().and_then(|args| {
         let fmu = Arc::new(Fmu::load(&args.fmu).map_err(|e| e.to_string())?);
         let table = simulate_alone(&fmu, args.stop, args.step, true).map_err(|e| e.to_string())?;
-        let id = fmu.description.model_identifier().unwrap_or("result").to_owned();
-        let out = args.out.unwrap_or_else(|| PathBuf::from(format!("{id}.csv")));
-        table.write_csv(&out).map_err(|e| format!("{}: {e}", out.display()))?;
-        println!("{}: {} steps, {} outputs -> {}", id, table.rows.len() - 1, table.columns.len() - 1, out.display());
+        let id = fmu
+            .description
+            .model_identifier()
+            .unwrap_or("result")
+            .to_owned();
+        let out = args
+            .out
+            .unwrap_or_else(|| PathBuf::from(format!("{id}.csv")));
+        table
+            .write_csv(&out)
+            .map_err(|e| format!("{}: {e}", out.display()))?;
+        println!(
+            "{}: {} steps, {} outputs -> {}",
+            id,
+            table.rows.len() - 1,
+            table.columns.len() - 1,
+            out.display()
+        );
         Ok(())
     });
     match result {

@@ -18,7 +18,11 @@ pub const IDS: [&str; 3] = ["dvpp_der", "dvpp_operator", "dvpp_grid"];
 /// Path of a bundled FMU.
 pub fn fmu_path(id: &str) -> PathBuf {
     let p = dist().join(format!("{id}.fmu"));
-    assert!(p.is_file(), "{} is missing: run `cargo xtask bundle` (or `cargo xtask test`)", p.display());
+    assert!(
+        p.is_file(),
+        "{} is missing: run `cargo xtask bundle` (or `cargo xtask test`)",
+        p.display()
+    );
     p
 }
 
@@ -52,7 +56,12 @@ pub fn run(i: &mut Instance, vrs: &[u32], t0: f64, h: f64, n: usize) -> Vec<Vec<
     (0..n)
         .map(|k| {
             let t = t0 + k as f64 * h;
-            assert_eq!(i.do_step(t, h), Status::Ok, "step at {t}: {:?}", i.last_message());
+            assert_eq!(
+                i.do_step(t, h),
+                Status::Ok,
+                "step at {t}: {:?}",
+                i.last_message()
+            );
             let mut out = vec![0.0; vrs.len()];
             assert_eq!(i.get_real(vrs, &mut out), Status::Ok);
             out

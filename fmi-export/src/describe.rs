@@ -115,9 +115,12 @@ fn start_override(d: &mut Declared, v: &toml::Value) -> Result<(), String> {
 }
 
 /// Declare the model for `config` and apply its start values.
-pub fn declare<M: Model>(config: &Config<M::Config>) -> Result<(M, Variables), String> {
+pub fn declare<M: Model>(
+    config: &Config<M::Config>,
+    resources: Option<&Path>,
+) -> Result<(M, Variables), String> {
     let mut vars = Variables::default();
-    let model = M::declare(&config.model, &mut vars)?;
+    let model = M::declare(&config.model, resources, &mut vars)?;
     for (name, v) in &config.start {
         let d = vars
             .find_mut(name)
@@ -152,8 +155,11 @@ fn unit_definition(name: &str) -> md::Unit {
 }
 
 /// The model description of `M` under `config`, with its content GUID.
-pub fn describe<M: Model>(config: &Config<M::Config>) -> Result<md::ModelDescription, String> {
-    let (_, vars) = declare::<M>(config)?;
+pub fn describe<M: Model>(
+    config: &Config<M::Config>,
+    resources: Option<&Path>,
+) -> Result<md::ModelDescription, String> {
+    let (_, vars) = declare::<M>(config, resources)?;
     description_of::<M>(&vars, &config.experiment)
 }
 
@@ -302,6 +308,10 @@ pub(crate) fn description_of<M: Model>(
 /// `config.toml` in the resources directory given as the only argument (defaults without one).
 pub fn describe_main<M: Model>() {
     let args: Vec<String> = std::env::args().skip(1).collect();
+    let dir = match args.as_slice() {
+        [dir] if !dir.starts_with('-') => Some(Path::new(dir)),
+        _ => None,
+    };
     let result = match args.as_slice() {
         [] => Ok(Config::<M::Config>::default()),
         [dir] if !dir.starts_with('-') => Config::load(Path::new(dir)),
@@ -311,7 +321,7 @@ pub fn describe_main<M: Model>() {
             M::IDENTIFIER
         )),
     }
-    .and_then(|c| describe::<M>(&c))
+    .and_then(|c| describe::<M>(&c, dir))
     .and_then(|d| d.to_xml().map_err(|e| e.to_string()));
     match result {
         Ok(xml) => print!("{xml}"),
@@ -325,7 +335,7 @@ pub fn describe_main<M: Model>() {
 /// Test helper: the default description of `M` must equal the committed golden copy at `path`
 /// (run with `UPDATE_GOLDEN=1` to rewrite it after an intended interface change).
 pub fn assert_golden<M: Model>(path: &str) {
-    let xml = describe::<M>(&Config::default())
+    let xml = describe::<M>(&Config::default(), None)
         .and_then(|d| d.to_xml().map_err(|e| e.to_string()))
         .unwrap_or_else(|e| panic!("{e}"));
     if std::env::var_os("UPDATE_GOLDEN").is_some() {

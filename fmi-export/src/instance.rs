@@ -131,7 +131,7 @@ impl<M: Model> Instance<M> {
         config: Config<M::Config>,
         logger: Logger,
     ) -> Result<Self, String> {
-        let (model, vars) = declare::<M>(&config)?;
+        let (model, vars) = declare::<M>(&config, resources.as_deref())?;
         let description = description_of::<M>(&vars, &config.experiment)?;
         if description.guid != expected_guid {
             return Err(format!(

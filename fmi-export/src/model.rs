@@ -21,8 +21,14 @@ pub trait Model: Clone + Send + Serialize + DeserializeOwned + 'static {
     /// `description`.
     const DESCRIPTION: &'static str;
 
-    /// Declare every variable and return the model holding their handles.
-    fn declare(config: &Self::Config, vars: &mut Variables) -> Result<Self, String>;
+    /// Declare every variable and return the model holding their handles. `resources` is the
+    /// FMU's `resources/` directory (for data files the config names); `None` when describing
+    /// the built-in defaults.
+    fn declare(
+        config: &Self::Config,
+        resources: Option<&std::path::Path>,
+        vars: &mut Variables,
+    ) -> Result<Self, String>;
 
     /// Compute initial outputs and states from parameters and inputs. Called in initialization
     /// mode whenever a value was set since the last call, and on leaving it; must be idempotent.

@@ -21,7 +21,7 @@ impl Model for Fragile {
     const NAME: &'static str = "fragile";
     const DESCRIPTION: &'static str = "panics when x > 1, fails when x < -1";
 
-    fn declare(_: &(), v: &mut Variables) -> Result<Self, String> {
+    fn declare(_: &(), _: Option<&std::path::Path>, v: &mut Variables) -> Result<Self, String> {
         Ok(Fragile {
             x: v.real(Spec::input("x", 0.0, "", "input")),
             y: v.real(Spec::output("y", "", "100% of x")),
@@ -78,7 +78,7 @@ fn panics_are_contained_and_errors_escalate() {
     let dir = std::env::temp_dir().join(format!("fragile-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("config.toml"), "").unwrap();
-    let guid = fmi_export::describe::<Fragile>(&Config::default())
+    let guid = fmi_export::describe::<Fragile>(&Config::default(), None)
         .unwrap()
         .guid;
     let callbacks = unsafe {

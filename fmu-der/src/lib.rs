@@ -47,7 +47,11 @@ impl Model for Der {
     const DESCRIPTION: &'static str =
         "Grid-forming DVPP unit: local reference model Δf = -T_pf/μ_p Δp with T_pf = 1/(H s + D)";
 
-    fn declare(_: &DerConfig, v: &mut Variables) -> Result<Self, String> {
+    fn declare(
+        _: &DerConfig,
+        _: Option<&std::path::Path>,
+        v: &mut Variables,
+    ) -> Result<Self, String> {
         let io = ["p", "q", "v", "v_angle"];
         Ok(Der {
             s_rated: v.real(Spec::parameter("S_rated", 60.0, "MVA", "converter rating").min(1e-3)),

@@ -111,7 +111,11 @@ impl Model for Grid {
     const DESCRIPTION: &'static str =
         "Swing-equation bus: governed machine, load with a step event, grid-forming DER slots";
 
-    fn declare(config: &GridConfig, v: &mut Variables) -> Result<Self, String> {
+    fn declare(
+        config: &GridConfig,
+        _: Option<&std::path::Path>,
+        v: &mut Variables,
+    ) -> Result<Self, String> {
         let n = config.der_slots;
         if !(1..=16).contains(&n) {
             return Err(format!("[model] der_slots = {n} is outside 1..=16"));

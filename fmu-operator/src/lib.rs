@@ -84,7 +84,11 @@ impl Model for Operator {
     const DESCRIPTION: &'static str =
         "DVPP operator: ADPF dc gains mu_p proportional to the DERs' available power, summing to 1";
 
-    fn declare(config: &OperatorConfig, v: &mut Variables) -> Result<Self, String> {
+    fn declare(
+        config: &OperatorConfig,
+        _: Option<&std::path::Path>,
+        v: &mut Variables,
+    ) -> Result<Self, String> {
         let n = config.ders;
         if !(1..=64).contains(&n) {
             return Err(format!("[model] ders = {n} is outside 1..=64"));

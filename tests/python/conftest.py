@@ -5,11 +5,11 @@ import pathlib
 import pytest
 
 DIST = pathlib.Path(os.environ.get("DVPP_DIST", pathlib.Path(__file__).parents[2] / "dist" / "default"))
-IDS = ["dvpp_der", "dvpp_operator", "dvpp_grid"]
+# Every FMU the bundler wrote: the defaults and their variants (dist/variants beside dist/default).
+FMUS = sorted(DIST.glob("*.fmu")) + sorted((DIST.parent / "variants").glob("*.fmu"))
 
 
-@pytest.fixture(params=IDS)
+@pytest.fixture(params=FMUS, ids=lambda p: p.stem)
 def fmu(request):
-    path = DIST / f"{request.param}.fmu"
-    assert path.is_file(), f"{path} is missing: run `cargo xtask bundle`"
-    return str(path)
+    return str(request.param)
+

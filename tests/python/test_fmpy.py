@@ -7,6 +7,13 @@ from fmpy.model_description import read_model_description
 import numpy as np
 
 
+def test_the_default_fmus_are_there():
+    from conftest import DIST
+
+    names = {p.stem for p in DIST.glob("*.fmu")}
+    assert {"dvpp_der", "dvpp_operator", "dvpp_grid"} <= names, f"run `cargo xtask bundle` ({DIST})"
+
+
 def test_validator_finds_no_problems(fmu):
     assert validate_fmu(fmu) == []
 

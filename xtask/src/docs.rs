@@ -64,7 +64,7 @@ mod tests {
     #[test]
     fn readme_lists_the_current_variables() {
         let root = crate::root();
-        let packages: Vec<&str> = crate::FMUS.iter().map(|(p, _)| *p).collect();
+        let packages: Vec<&str> = crate::FMUS.iter().map(|f| f.package).collect();
         let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
         let fresh =
             super::replace_section(&readme, &super::section(&root, &packages).unwrap()).unwrap();

@@ -1,17 +1,13 @@
 //! `cargo xtask`: builds and bundles the FMUs, runs the tests and the demo.
 
+mod catalog;
 mod docs;
+
+use catalog::{BENCHES, FMUS, VARIANTS};
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
-
-/// The FMU crates: package, describe binary, model identifier, library file.
-const FMUS: &[(&str, &str)] = &[
-    ("fmu-der", "dvpp_der"),
-    ("fmu-operator", "dvpp_operator"),
-    ("fmu-grid", "dvpp_grid"),
-];
 
 /// Python packages the tests install into their own virtual environment.
 const PYTHON_PACKAGES: &[&str] = &["fmpy==0.3.32", "pytest==8.4.2"];
@@ -46,7 +42,8 @@ fn cargo() -> Command {
 const USAGE: &str = "usage: cargo xtask <task>
 
 tasks:
-  bundle   build the FMUs in release and write dist/default/<id>.fmu
+  bundle   build the FMUs in release; write dist/default/<id>.fmu and dist/variants/<id>-<variant>.fmu
+  bench    bundle, then measure ns per fmi2DoStep of each benchmark FMU
   demo     bundle, then simulate every default FMU headless; results in results/
   test     bundle, run the Rust tests, then the Python (fmpy) tests in target/venv
   docs     regenerate README.md's variable tables from the FMUs' model descriptions";
@@ -56,6 +53,7 @@ fn main() -> ExitCode {
     let result = match args.first().map(String::as_str) {
         Some("bundle") => bundle().map(|_| ()),
         Some("demo") => demo(),
+        Some("bench") => bench(),
         Some("test") => test(),
         Some("docs") => write_docs(),
         _ => Err(USAGE.into()),
@@ -73,8 +71,8 @@ fn main() -> ExitCode {
 fn build_release() -> Result {
     let mut c = cargo();
     c.args(["build", "--release"]);
-    for (package, _) in FMUS {
-        c.args(["--package", package]);
+    for fmu in FMUS {
+        c.args(["--package", fmu.package]);
     }
     run(&mut c)
 }
@@ -123,33 +121,97 @@ fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result {
     Ok(())
 }
 
-/// Build and bundle the default FMUs into `dist/default/`; returns their paths.
+/// Write a resources directory with `config` and `files`, then the `.fmu` from it.
+fn bundle_one(
+    package: &str,
+    id: &str,
+    staging: &str,
+    config: &str,
+    files: &[&str],
+    out: &Path,
+) -> Result {
+    let resources = root()
+        .join("target")
+        .join("bundle")
+        .join(staging)
+        .join("resources");
+    if resources.exists() {
+        std::fs::remove_dir_all(&resources).map_err(|e| e.to_string())?;
+    }
+    std::fs::create_dir_all(&resources).map_err(|e| e.to_string())?;
+    std::fs::write(resources.join("config.toml"), config).map_err(|e| e.to_string())?;
+    for file in files {
+        let src = root().join(file);
+        let name = src.file_name().ok_or(format!("{file}: not a file"))?;
+        std::fs::copy(&src, resources.join(name)).map_err(|e| format!("{}: {e}", src.display()))?;
+    }
+    write_fmu(package, id, &resources, out)?;
+    println!(
+        "bundled {}",
+        out.strip_prefix(root()).unwrap_or(out).display()
+    );
+    Ok(())
+}
+
+/// Build and bundle the default FMUs into `dist/default/` and the variants into
+/// `dist/variants/`; returns the default FMUs' paths.
 fn bundle() -> Result<Vec<PathBuf>> {
     build_release()?;
-    let dist = root().join("dist").join("default");
-    std::fs::create_dir_all(&dist).map_err(|e| e.to_string())?;
+    let dist = root().join("dist");
+    for sub in ["default", "variants"] {
+        std::fs::create_dir_all(dist.join(sub)).map_err(|e| e.to_string())?;
+    }
     let mut written = Vec::new();
-    for (package, id) in FMUS {
-        let resources = root()
-            .join("target")
-            .join("bundle")
-            .join(id)
-            .join("resources");
-        std::fs::create_dir_all(&resources).map_err(|e| e.to_string())?;
-        std::fs::write(
-            resources.join("config.toml"),
-            "# Default configuration: declared start values, default experiment.\n",
-        )
-        .map_err(|e| e.to_string())?;
-        let out = dist.join(format!("{id}.fmu"));
-        write_fmu(package, id, &resources, &out)?;
-        println!(
-            "bundled {}",
-            out.strip_prefix(root()).unwrap_or(&out).display()
-        );
+    for fmu in FMUS {
+        let out = dist.join("default").join(format!("{}.fmu", fmu.id));
+        let config = "# Default configuration: declared start values, default experiment.\n";
+        bundle_one(fmu.package, fmu.id, fmu.id, config, &[], &out)?;
         written.push(out);
     }
+    for v in VARIANTS {
+        let fmu = FMUS
+            .iter()
+            .find(|f| f.id == v.id)
+            .ok_or(format!("variant of unknown FMU {}", v.id))?;
+        let out = dist
+            .join("variants")
+            .join(format!("{}-{}.fmu", v.id, v.name));
+        bundle_one(
+            fmu.package,
+            fmu.id,
+            &format!("{}-{}", v.id, v.name),
+            v.config,
+            v.files,
+            &out,
+        )?;
+    }
     Ok(written)
+}
+
+fn bench() -> Result {
+    bundle()?;
+    let mut c = cargo();
+    c.args([
+        "run",
+        "--release",
+        "--quiet",
+        "--package",
+        "dvpp-cosim",
+        "--bin",
+        "bench",
+        "--",
+    ]);
+    for b in BENCHES {
+        let sets: Vec<String> = b.set.iter().map(|(n, v)| format!("{n}={v}")).collect();
+        c.arg(format!(
+            "{}|{}|{}|{}",
+            b.label,
+            root().join("dist").join(b.fmu).display(),
+            b.h,
+            sets.join(",")
+        ));
+    }
+    run(&mut c)
 }
 
 fn demo() -> Result {
@@ -227,7 +289,7 @@ fn test() -> Result {
 fn write_docs() -> Result {
     let path = root().join("README.md");
     let readme = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let packages: Vec<&str> = FMUS.iter().map(|(p, _)| *p).collect();
+    let packages: Vec<&str> = FMUS.iter().map(|f| f.package).collect();
     let fresh = docs::replace_section(&readme, &docs::section(&root(), &packages)?)?;
     std::fs::write(&path, fresh).map_err(|e| e.to_string())?;
     println!("updated the variable tables in README.md");

@@ -1,270 +1,458 @@
-//! Reduced grid FMU: a single swing-equation bus with a governed machine, a load and DER slots.
+//! Reduced grid FMU: a phasor (RMS) power-system model built from a case file, with DER slots.
 //!
-//! The bus voltage `V∠δ` rotates with the machine speed ω (`δ' = 2π f_nom (ω - 1)`); the machine
-//! obeys `2H ω' = P_m - P_e - D (ω - 1)` with `P_e = P_load - Σ p_k`, and its governor
-//! `T_g P_m' = P_m0 - (ω - 1)/R - P_m`. Each grid-forming DER slot injects through its impedance
-//! from the internal voltage `E_k∠θ_k` it receives. A load step event perturbs the balance.
+//! The physics lives in the modules: [`case`] (the TOML case format and its validation),
+//! [`powerflow`] (Newton–Raphson power flow), [`grid`] (machines, governors, exciters, DER slots,
+//! events, PCC and COI outputs, RK4 integration with an algebraic network solve) and [`analysis`]
+//! (load-step figures). This file wraps [`Grid`] as an FMU ([`GridFmu`]).
+//!
+//! `[model]` in `resources/config.toml` selects the case: `case = "<built-in name>"` or
+//! `case_file = "<file in resources/>"` (default: the built-in `ieee9_dvpp`), and may append
+//! events (`[[model.event]]`, same tables as a case file's `[[event]]`). The variables follow
+//! the case: per DER slot k its inputs (`der[k].theta`, `der[k].E` grid-forming;
+//! `der[k].p_ref`, `der[k].q_ref` grid-following; starts = the power-flow set points, so a run
+//! with untouched inputs is a flat start) and outputs, per machine j its speed and powers, per
+//! event i its override parameters, and the PCC, COI and power-balance outputs.
+//!
+//! In initialization mode the outputs are the power-flow operating point (they depend on no
+//! input, so a master can initialize the DER FMUs from them); in step mode they are computed
+//! by `fmi2DoStep` with the inputs held over the step (no direct feedthrough).
 
-use dvpp_control::phasor::{injection, internal_voltage};
-use fmi_export::{Context, Model, ModelError, Real, Spec, Store, Variables};
+pub mod analysis;
+pub mod case;
+pub mod grid;
+pub mod powerflow;
+
+pub use case::{Case, CaseError, DerKind, Event, LoadModel};
+pub use grid::{
+    DerInput, DerOutput, DerSetpoint, EventOverride, EventState, Grid, GridError, MachineOutput,
+    Outputs, PccOutput, MAX_INTERNAL_STEP,
+};
+pub use powerflow::PowerFlow;
+
+use fmi_export::{Boolean, Context, Model, ModelError, Real, Spec, Store, Variables};
 use serde::{Deserialize, Serialize};
-use std::f64::consts::PI;
+use std::path::Path;
 
-/// Handles of one grid-forming DER slot.
+/// The built-in case used when `[model]` names none.
+pub const DEFAULT_CASE: &str = "ieee9_dvpp";
+
+/// `[model]` of `resources/config.toml`: which case the grid is built from.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridConfig {
+    /// A built-in case: `ieee9`, `ieee9_dvpp` or `ieee9_hybrid`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub case: Option<String>,
+    /// A case file (TOML) in the FMU's `resources/` directory, relative to it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub case_file: Option<String>,
+    /// Events appended to the case's own (e.g. a load step on a case that has none).
+    #[serde(default, rename = "event", skip_serializing_if = "Vec::is_empty")]
+    pub events: Vec<Event>,
+}
+
+impl GridConfig {
+    /// Read and validate the case this configuration selects, with its extra events appended.
+    pub fn load_case(&self, resources: Option<&Path>) -> Result<Case, String> {
+        let mut case = match (&self.case, &self.case_file) {
+            (Some(_), Some(_)) => {
+                return Err("[model] sets both `case` and `case_file`; choose one".into())
+            }
+            (None, Some(file)) => {
+                let rel = Path::new(file);
+                if rel.is_absolute()
+                    || rel
+                        .components()
+                        .any(|c| !matches!(c, std::path::Component::Normal(_)))
+                {
+                    return Err(format!(
+                        "[model] case_file = \"{file}\" must be a relative path inside resources/"
+                    ));
+                }
+                let dir = resources.ok_or_else(|| {
+                    format!("[model] case_file = \"{file}\" needs the FMU's resources directory")
+                })?;
+                let path = dir.join(rel);
+                let text = std::fs::read_to_string(&path).map_err(|e| {
+                    format!("case file {file}: cannot read {}: {e}", path.display())
+                })?;
+                Case::from_toml_str(&text).map_err(|e| format!("case file {file}: {e}"))?
+            }
+            (name, None) => {
+                let name = name.as_deref().unwrap_or(DEFAULT_CASE);
+                let text = case::builtin_text(name).ok_or_else(|| {
+                    format!(
+                        "[model] case = \"{name}\" is not a built-in case (built-in: {})",
+                        Case::builtin_names().join(", ")
+                    )
+                })?;
+                Case::from_toml_str(text).map_err(|e| format!("built-in case {name}: {e}"))?
+            }
+        };
+        if !self.events.is_empty() {
+            case.events.extend(self.events.iter().cloned());
+            case.validate()
+                .map_err(|e| format!("[model] event tables: {e}"))?;
+        }
+        Ok(case)
+    }
+}
+
+/// Handles of one DER slot: its two inputs (θ, E or p_ref, q_ref) and four outputs.
 #[derive(Clone, Serialize, Deserialize)]
-struct Slot {
-    r: Real,
-    x: Real,
-    p0: Real,
-    q0: Real,
-    theta: Real,
-    e: Real,
+struct SlotVars {
+    grid_forming: bool,
+    a: Real,
+    b: Real,
     p: Real,
     q: Real,
     v: Real,
     v_angle: Real,
 }
 
-/// Handles of the grid's variables and its dynamic state.
+/// Handles of the parameters that override one scheduled event.
 #[derive(Clone, Serialize, Deserialize)]
-pub struct Grid {
-    f_nom: Real,
-    h: Real,
-    d: Real,
-    droop: Real,
-    t_g: Real,
-    v_bus: Real,
-    p_load: Real,
-    event_time: Real,
-    event_dp: Real,
-    slots: Vec<Slot>,
-    pcc_p: Real,
-    pcc_q: Real,
-    pcc_v: Real,
-    pcc_f: Real,
+struct EventVars {
+    enabled: Boolean,
+    time: Real,
+    /// Load steps only: ΔP, ΔQ in pu on S_base.
+    size: Option<(Real, Real)>,
+}
+
+/// Handles of one machine's outputs.
+#[derive(Clone, Serialize, Deserialize)]
+struct MachineVars {
+    omega: Real,
+    p: Real,
+    q: Real,
+    pm: Real,
+}
+
+/// The grid FMU: the [`Grid`] and the handles of its variables.
+#[derive(Clone, Serialize, Deserialize)]
+pub struct GridFmu {
+    grid: Grid,
+    /// The clock was aligned with the master's start time (first `do_step`).
+    started: bool,
+    slots: Vec<SlotVars>,
+    events: Vec<EventVars>,
+    machines: Vec<MachineVars>,
+    pcc: [Real; 4],
     coi_f: Real,
-    sg_omega: Real,
-    sg_p: Real,
-    /// Bus angle δ (rad), machine speed ω (pu), mechanical power P_m (pu).
-    state: [f64; 3],
-    p_m0: f64,
+    /// Generation, load, losses and generation − load − losses.
+    balance: [Real; 4],
 }
 
-/// Structure of the grid: how many DER slots it has.
-#[derive(Debug, Clone, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GridConfig {
-    pub der_slots: usize,
-}
-
-impl Default for GridConfig {
-    fn default() -> Self {
-        GridConfig { der_slots: 3 }
+fn event_label(e: &Event) -> String {
+    match e {
+        Event::LoadStep { bus, .. } => format!("load step at bus {bus}"),
+        Event::GeneratorTrip { machine, .. } => format!("trip of machine {machine}"),
+        Event::LineTrip { branch, .. } => format!("trip of branch {branch}"),
     }
 }
 
-/// Internal integration step (s); a communication step is split into equal RK4 sub-steps.
-const MAX_SUBSTEP: f64 = 1e-3;
-
-impl Grid {
-    /// DER injections for bus angle `delta` with the held internal voltages.
-    fn injections(&self, s: &Store, delta: f64) -> Vec<(f64, f64)> {
-        self.slots
-            .iter()
-            .map(|k| injection(s[k.e], s[k.theta], s[self.v_bus], delta, s[k.r], s[k.x]))
-            .collect()
+impl GridFmu {
+    /// The grid being simulated.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
     }
 
-    fn derivative(&self, s: &Store, load: f64, x: [f64; 3]) -> [f64; 3] {
-        let [delta, omega, p_m] = x;
-        let der: f64 = self.injections(s, delta).iter().map(|(p, _)| p).sum();
-        let p_e = load - der;
-        [
-            2.0 * PI * s[self.f_nom] * (omega - 1.0),
-            (p_m - p_e - s[self.d] * (omega - 1.0)) / (2.0 * s[self.h]),
-            (self.p_m0 - (omega - 1.0) / s[self.droop] - p_m) / s[self.t_g],
-        ]
-    }
-
-    fn write_outputs(&self, s: &mut Store, powers: &[(f64, f64)], load: f64) {
-        let [delta, omega, _] = self.state;
-        for (k, &(p, q)) in self.slots.iter().zip(powers) {
-            s[k.p] = p;
-            s[k.q] = q;
-            s[k.v] = s[self.v_bus];
-            s[k.v_angle] = delta;
+    fn write_outputs(&self, s: &mut Store) {
+        let o = self.grid.outputs();
+        for (vars, d) in self.slots.iter().zip(&o.der) {
+            s[vars.p] = d.p;
+            s[vars.q] = d.q;
+            s[vars.v] = d.v;
+            s[vars.v_angle] = d.v_angle;
         }
-        s[self.pcc_p] = powers.iter().map(|(p, _)| p).sum();
-        s[self.pcc_q] = powers.iter().map(|(_, q)| q).sum();
-        s[self.pcc_v] = s[self.v_bus];
-        s[self.pcc_f] = omega;
-        s[self.coi_f] = omega;
-        s[self.sg_omega] = omega;
-        s[self.sg_p] = load - s[self.pcc_p];
+        for (vars, m) in self.machines.iter().zip(&o.sg) {
+            s[vars.omega] = m.omega;
+            s[vars.p] = m.p;
+            s[vars.q] = m.q;
+            s[vars.pm] = m.pm;
+        }
+        let [p, q, v, f] = self.pcc;
+        s[p] = o.pcc.p;
+        s[q] = o.pcc.q;
+        s[v] = o.pcc.v;
+        s[f] = o.pcc.f;
+        s[self.coi_f] = o.coi_f;
+        let [gen, load, loss, mismatch] = self.balance;
+        s[gen] = o.gen_p;
+        s[load] = o.load_p;
+        s[loss] = o.loss_p;
+        s[mismatch] = o.balance_p;
     }
 }
 
-impl Model for Grid {
+impl Model for GridFmu {
     type Config = GridConfig;
     const IDENTIFIER: &'static str = "dvpp_grid";
     const NAME: &'static str = "DVPP reduced grid";
     const DESCRIPTION: &'static str =
-        "Swing-equation bus: governed machine, load with a step event, grid-forming DER slots";
+        "Phasor power-system model from a case file: power flow, two-axis machines with governors \
+         and exciters, grid-forming and grid-following DER slots, scheduled events";
 
     fn declare(
         config: &GridConfig,
-        _: Option<&std::path::Path>,
+        resources: Option<&Path>,
         v: &mut Variables,
     ) -> Result<Self, String> {
-        let n = config.der_slots;
-        if !(1..=16).contains(&n) {
-            return Err(format!("[model] der_slots = {n} is outside 1..=16"));
+        let case = config.load_case(resources)?;
+        let grid = Grid::new(&case).map_err(|e| format!("case {}: {e}", case.name))?;
+        let (sb, f_nom) = (case.base_mva, case.f_nom);
+        v.real(
+            Spec::parameter(
+                "S_base",
+                sb,
+                "MVA",
+                "system base power (fixed by the case file)",
+            )
+            .range(sb, sb),
+        );
+        v.real(
+            Spec::parameter(
+                "f_nom",
+                f_nom,
+                "Hz",
+                "nominal frequency (fixed by the case file)",
+            )
+            .range(f_nom, f_nom),
+        );
+
+        let mut events = Vec::new();
+        for (i, es) in grid.events().iter().enumerate() {
+            let name = |s: &str| format!("event[{}].{s}", i + 1);
+            let what = event_label(&es.event);
+            let enabled = v.boolean(Spec::parameter(
+                &name("enabled"),
+                true,
+                "",
+                &format!("event {}, {what}: false cancels it", i + 1),
+            ));
+            let time = v.real(
+                Spec::parameter(
+                    &name("time"),
+                    es.event.time(),
+                    "s",
+                    &format!("event {}, {what}: time it happens", i + 1),
+                )
+                .min(0.0),
+            );
+            let size = match &es.event {
+                Event::LoadStep { dp_mw, dq_mvar, .. } => Some((
+                    v.real(Spec::parameter(
+                        &name("dP"),
+                        dp_mw / sb,
+                        "pu",
+                        &format!(
+                            "event {}, {what}: added active load on S_base (positive = more load)",
+                            i + 1
+                        ),
+                    )),
+                    v.real(Spec::parameter(
+                        &name("dQ"),
+                        dq_mvar / sb,
+                        "pu",
+                        &format!("event {}, {what}: added reactive load on S_base", i + 1),
+                    )),
+                )),
+                _ => None,
+            };
+            events.push(EventVars {
+                enabled,
+                time,
+                size,
+            });
         }
-        let (p0_default, r_default, x_default, v_default) = (0.3, 0.0333, 0.35, 1.0);
-        let (e_start, theta_start) =
-            internal_voltage(p0_default, 0.0, v_default, 0.0, r_default, x_default);
-        let f_nom = v.real(Spec::parameter("f_nom", 50.0, "Hz", "nominal frequency").min(1e-3));
-        let h = v.real(
-            Spec::parameter("sg.H", 6.0, "s", "machine inertia constant on S_base").min(1e-3),
-        );
-        let d = v.real(
-            Spec::parameter("sg.D", 1.0, "pu", "machine and load damping on S_base").min(0.0),
-        );
-        let droop = v.real(Spec::parameter("sg.R", 0.05, "pu", "governor droop").min(1e-4));
-        let t_g = v.real(Spec::parameter("sg.T_g", 0.5, "s", "governor time constant").min(1e-4));
-        let v_bus =
-            v.real(Spec::parameter("bus.V", v_default, "pu", "bus voltage magnitude").min(0.1));
-        let p_load =
-            v.real(Spec::parameter("load.P", 3.15, "pu", "load active power on S_base").min(0.0));
-        let event_time = v.real(Spec::parameter(
-            "event.time",
-            1.0,
-            "s",
-            "time of the load step",
-        ));
-        let event_dp = v.real(Spec::parameter(
-            "event.dP",
-            0.28,
-            "pu",
-            "load step on S_base (positive = load increase)",
-        ));
-        let mut slots = Vec::with_capacity(n);
-        for k in 1..=n {
-            let name = |s: &str| format!("der[{k}].{s}");
-            slots.push(Slot {
-                r: v.real(
-                    Spec::parameter(
-                        &name("R"),
-                        r_default,
-                        "pu",
-                        "slot filter + transformer resistance on S_base",
-                    )
-                    .min(0.0),
+
+        let mut slots = Vec::new();
+        for (k, init) in grid.der_initial().iter().enumerate() {
+            let name = |s: &str| format!("der[{}].{s}", k + 1);
+            let bus = case.ders[k].bus;
+            let (grid_forming, a, b) = match *init {
+                DerSetpoint::GridForming { theta0, e0 } => (
+                    true,
+                    v.real(Spec::input(
+                        &name("theta"),
+                        theta0,
+                        "rad",
+                        "grid-forming slot: internal voltage angle behind the slot impedance",
+                    )),
+                    v.real(
+                        Spec::input(
+                            &name("E"),
+                            e0,
+                            "pu",
+                            "grid-forming slot: internal voltage magnitude behind the slot impedance",
+                        )
+                        .min(0.0),
+                    ),
                 ),
-                x: v.real(
-                    Spec::parameter(
-                        &name("X"),
-                        x_default,
+                DerSetpoint::GridFollowing { p0, q0 } => (
+                    false,
+                    v.real(Spec::input(
+                        &name("p_ref"),
+                        p0,
                         "pu",
-                        "slot filter + transformer reactance on S_base",
-                    )
-                    .min(1e-6),
-                ),
-                p0: v.real(Spec::parameter(
-                    &name("p0"),
-                    p0_default,
-                    "pu",
-                    "initial active dispatch of the slot on S_base",
-                )),
-                q0: v.real(Spec::parameter(
-                    &name("q0"),
-                    0.0,
-                    "pu",
-                    "initial reactive dispatch of the slot on S_base",
-                )),
-                theta: v.real(Spec::input(
-                    &name("theta"),
-                    theta_start,
-                    "rad",
-                    "grid-forming slot: internal voltage angle",
-                )),
-                e: v.real(
-                    Spec::input(
-                        &name("E"),
-                        e_start,
+                        "grid-following slot: active power injected at its bus, on S_base",
+                    )),
+                    v.real(Spec::input(
+                        &name("q_ref"),
+                        q0,
                         "pu",
-                        "grid-forming slot: internal voltage magnitude",
-                    )
-                    .min(0.0),
+                        "grid-following slot: reactive power injected at its bus, on S_base",
+                    )),
                 ),
+            };
+            slots.push(SlotVars {
+                grid_forming,
+                a,
+                b,
                 p: v.real(Spec::output(
                     &name("p"),
                     "pu",
-                    "active power the slot injects, on S_base",
+                    &format!("active power the slot injects into bus {bus}, on S_base"),
                 )),
                 q: v.real(Spec::output(
                     &name("q"),
                     "pu",
-                    "reactive power the slot injects, on S_base",
+                    &format!("reactive power the slot injects into bus {bus}, on S_base"),
                 )),
                 v: v.real(Spec::output(
                     &name("v"),
                     "pu",
-                    "voltage magnitude at the slot's regulated bus",
+                    &format!("voltage magnitude at the slot's bus {bus}"),
                 )),
                 v_angle: v.real(Spec::output(
                     &name("v_angle"),
                     "rad",
-                    "voltage angle at the slot's regulated bus",
+                    &format!(
+                        "voltage angle at the slot's bus {bus}, frame rotating at f_nom, unwrapped"
+                    ),
                 )),
             });
         }
-        Ok(Grid {
-            f_nom,
-            h,
-            d,
-            droop,
-            t_g,
-            v_bus,
-            p_load,
-            event_time,
-            event_dp,
-            slots,
-            pcc_p: v.real(Spec::output(
+
+        let pcc_bus = case
+            .pcc
+            .as_ref()
+            .map(|p| p.bus)
+            .or(case.ders.first().map(|d| d.bus))
+            .unwrap_or(case.buses[0].id);
+        let pcc = [
+            v.real(Spec::output(
                 "pcc.p",
                 "pu",
-                "DVPP active power at the PCC, on S_base",
+                "DVPP active power at the PCC (sum of its slots and branches), on S_base",
             )),
-            pcc_q: v.real(Spec::output(
+            v.real(Spec::output(
                 "pcc.q",
                 "pu",
-                "DVPP reactive power at the PCC, on S_base",
+                "DVPP reactive power at the PCC (sum of its slots and branches), on S_base",
             )),
-            pcc_v: v.real(Spec::output("pcc.v", "pu", "PCC voltage magnitude")),
-            pcc_f: v.real(Spec::output("pcc.f", "pu", "PCC frequency, pu of f_nom")),
-            coi_f: v.real(Spec::output(
-                "coi.f",
+            v.real(Spec::output(
+                "pcc.v",
                 "pu",
-                "centre-of-inertia frequency, pu of f_nom",
+                &format!("PCC voltage magnitude (bus {pcc_bus})"),
             )),
-            sg_omega: v.real(Spec::output("sg[1].omega", "pu", "machine speed")),
-            sg_p: v.real(Spec::output(
-                "sg[1].p",
+            v.real(Spec::output(
+                "pcc.f",
                 "pu",
-                "machine electrical power on S_base",
+                "PCC frequency, pu of f_nom: rate of change of the PCC voltage angle through \
+                 s/(T_f s + 1), T_f from the case (default 0.02 s)",
             )),
-            state: [0.0, 1.0, 0.0],
-            p_m0: 0.0,
+        ];
+        let coi_f = v.real(Spec::output(
+            "coi.f",
+            "pu",
+            "centre-of-inertia frequency, pu of f_nom: sum H_j omega_j / sum H_j over the \
+             machines in service (pcc.f when none is)",
+        ));
+        let machines = case
+            .machines
+            .iter()
+            .enumerate()
+            .map(|(j, m)| {
+                let name = |s: &str| format!("sg[{}].{s}", j + 1);
+                let label = m
+                    .name
+                    .clone()
+                    .unwrap_or_else(|| format!("machine at bus {}", m.bus));
+                MachineVars {
+                    omega: v.real(Spec::output(
+                        &name("omega"),
+                        "pu",
+                        &format!("{label}: rotor speed, pu of f_nom"),
+                    )),
+                    p: v.real(Spec::output(
+                        &name("p"),
+                        "pu",
+                        &format!("{label}: electrical active power at its terminal, on S_base"),
+                    )),
+                    q: v.real(Spec::output(
+                        &name("q"),
+                        "pu",
+                        &format!("{label}: reactive power at its terminal, on S_base"),
+                    )),
+                    pm: v.real(Spec::output(
+                        &name("pm"),
+                        "pu",
+                        &format!("{label}: mechanical power from its turbine, on S_base"),
+                    )),
+                }
+            })
+            .collect();
+        let balance = [
+            v.real(Spec::output(
+                "sys.p_gen",
+                "pu",
+                "total generation: machine terminal powers + DER slot injections, on S_base",
+            )),
+            v.real(Spec::output(
+                "sys.p_load",
+                "pu",
+                "total load: loads, event loads and shunt conductances at their present voltage, \
+                 on S_base",
+            )),
+            v.real(Spec::output(
+                "sys.p_loss",
+                "pu",
+                "series losses of lines and transformers, on S_base",
+            )),
+            v.real(Spec::output(
+                "sys.p_mismatch",
+                "pu",
+                "power balance sys.p_gen - sys.p_load - sys.p_loss, on S_base (zero up to the \
+                 network solver tolerance)",
+            )),
+        ];
+        Ok(GridFmu {
+            grid,
+            started: false,
+            slots,
+            events,
+            machines,
+            pcc,
+            coi_f,
+            balance,
         })
     }
 
     fn initialize(&mut self, s: &mut Store, _: &mut Context) -> Result<(), ModelError> {
-        let dispatch: Vec<(f64, f64)> = self.slots.iter().map(|k| (s[k.p0], s[k.q0])).collect();
-        let der: f64 = dispatch.iter().map(|(p, _)| p).sum();
-        self.p_m0 = s[self.p_load] - der;
-        self.state = [0.0, 1.0, self.p_m0];
-        let load = s[self.p_load];
-        self.write_outputs(s, &dispatch, load);
+        let sb = self.grid.case().base_mva;
+        for (i, e) in self.events.iter().enumerate() {
+            let ov = EventOverride {
+                enabled: Some(s[e.enabled]),
+                time: Some(s[e.time]),
+                dp_mw: e.size.map(|(p, _)| s[p] * sb),
+                dq_mvar: e.size.map(|(_, q)| s[q] * sb),
+            };
+            self.grid
+                .set_event_override(i, ov)
+                .map_err(|err| ModelError(err.to_string()))?;
+        }
+        self.write_outputs(s);
         Ok(())
     }
 
@@ -275,43 +463,90 @@ impl Model for Grid {
         h: f64,
         _: &mut Context,
     ) -> Result<(), ModelError> {
-        let n = (h / MAX_SUBSTEP).ceil().max(1.0) as usize;
-        let dt = h / n as f64;
-        let load_at = |tau: f64| {
-            s[self.p_load]
-                + if tau >= s[self.event_time] {
-                    s[self.event_dp]
-                } else {
-                    0.0
-                }
-        };
-        for i in 0..n {
-            let load = load_at(t + i as f64 * dt);
-            let x = self.state;
-            let add = |a: [f64; 3], b: [f64; 3], c: f64| {
-                [a[0] + c * b[0], a[1] + c * b[1], a[2] + c * b[2]]
-            };
-            let k1 = self.derivative(s, load, x);
-            let k2 = self.derivative(s, load, add(x, k1, dt / 2.0));
-            let k3 = self.derivative(s, load, add(x, k2, dt / 2.0));
-            let k4 = self.derivative(s, load, add(x, k3, dt));
-            self.state = std::array::from_fn(|j| {
-                x[j] + dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
-            });
+        if !self.started {
+            self.grid
+                .start_at(t)
+                .map_err(|e| ModelError(e.to_string()))?;
+            self.started = true;
         }
-        let powers = self.injections(s, self.state[0]);
-        self.write_outputs(s, &powers, load_at(t + h));
+        for (k, vars) in self.slots.iter().enumerate() {
+            let (a, b) = (s[vars.a], s[vars.b]);
+            let input = if vars.grid_forming {
+                DerInput::GridForming { theta: a, e: b }
+            } else {
+                DerInput::GridFollowing { p_ref: a, q_ref: b }
+            };
+            self.grid
+                .set_der_input_deferred(k, input)
+                .map_err(|e| ModelError(e.to_string()))?;
+        }
+        self.grid
+            .step(t, h)
+            .map_err(|e| ModelError(format!("grid step from t = {t} s: {e}")))?;
+        self.write_outputs(s);
         Ok(())
     }
 }
 
-fmi_export::export_fmu!(Grid);
+fmi_export::export_fmu!(GridFmu);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_selects_built_in_cases_and_rejects_bad_selections() {
+        for name in Case::builtin_names() {
+            let c = GridConfig {
+                case: Some(name.to_string()),
+                ..Default::default()
+            };
+            assert_eq!(&c.load_case(None).unwrap().name, name);
+        }
+        assert_eq!(
+            GridConfig::default().load_case(None).unwrap().name,
+            DEFAULT_CASE
+        );
+        let both = GridConfig {
+            case: Some("ieee9".into()),
+            case_file: Some("x.toml".into()),
+            ..Default::default()
+        };
+        assert!(both.load_case(None).unwrap_err().contains("both"));
+        let unknown = GridConfig {
+            case: Some("ieee14".into()),
+            ..Default::default()
+        };
+        assert!(unknown
+            .load_case(None)
+            .unwrap_err()
+            .contains("not a built-in case"));
+        let escape = GridConfig {
+            case_file: Some("../secret.toml".into()),
+            ..Default::default()
+        };
+        assert!(escape
+            .load_case(Some(Path::new("/tmp")))
+            .unwrap_err()
+            .contains("inside resources"));
+    }
+
+    #[test]
+    fn extra_events_are_validated() {
+        let text = "case = \"ieee9\"\n[[event]]\ntype = \"load_step\"\ntime = 1.0\nbus = 50\ndp_mw = 28.0\n";
+        let c: GridConfig = toml::from_str(text).unwrap();
+        let e = c.load_case(None).unwrap_err();
+        assert!(e.contains("bus 50"), "{e}");
+        let c: GridConfig = toml::from_str(&text.replace("bus = 50", "bus = 5")).unwrap();
+        assert_eq!(c.load_case(None).unwrap().events.len(), 1);
+    }
+}
 
 #[cfg(test)]
 mod golden {
     #[test]
     fn model_description_matches_the_golden_copy() {
-        fmi_export::assert_golden::<super::Grid>(concat!(
+        fmi_export::assert_golden::<super::GridFmu>(concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/modelDescription.xml"
         ));

@@ -1,79 +1,297 @@
-//! DVPP operator FMU: splits the DVPP's steady-state participation into ADPF dc gains `μ_p`.
+//! DVPP operator FMU: online ADPF dc gains for every DER and the desired aggregate response.
 //!
-//! Each DER's active dc gain is its share of the total available power, `μ_k = P_k / Σ P`,
-//! bounded below by `mu_min` (a grid-forming unit cannot have zero p-f participation) and
-//! renormalized so that `Σ μ_k = 1` holds at every output.
+//! Centrally, at every communication step (paper §III, "online adaptation of LPF dc gains"):
+//! - active dc gains `μ_p` of the low-pass units proportional to their available power, bounded
+//!   below by `mu_min` for grid-forming units (a grid-forming unit cannot have zero p-f
+//!   participation) and renormalized, so `Σ μ_p = 1` over the low-pass units;
+//! - reactive dc gains `μ_q` of all units proportional to their PQ-capability headroom
+//!   `sqrt(S² - P²)`, so `Σ μ_q = 1`;
+//! - a complement unit receives the low-pass gains it complements (`mu_p_lpf[j]`);
+//! - optional rate limit and communication delay that keep both sums exact;
+//! - the desired aggregate response `ref.df = -T_pf Δp_pcc`, `ref.dv = -T_qv Δq_pcc` (on the
+//!   `S_dvpp` base, changes since initialization) and the matching errors `err.df`, `err.dv`.
+//!
+//! A DER split into a grid-forming and a grid-following part (case study II) appears as two
+//! entries whose `share` (ε and 1 - ε) scales its availability and its rating.
 
+use dvpp_control::adaptation::{reactive_capacity, renormalize_with_floor};
+use dvpp_control::{Hold, LtiSimulator, TDes};
 use fmi_export::{Context, Model, ModelError, Real, Spec, Store, Variables};
 use serde::{Deserialize, Serialize};
+use std::collections::VecDeque;
 
-/// The handles of the operator's variables.
-#[derive(Clone, Serialize, Deserialize)]
-pub struct Operator {
-    mu_min: Real,
-    p_avail: Vec<Real>,
-    mu_p: Vec<Real>,
-    /// Whether the all-zero availability warning was given (it is given once).
-    warned_zero: bool,
+/// The ADPF shape of a DER's p-f channel, as far as the operator cares.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Role {
+    /// Steady-state contribution; gets an active dc gain.
+    LowPass,
+    /// Zero dc gain; no active dc gain to send.
+    HighPass,
+    /// Zero dc gain; no active dc gain to send.
+    BandPass,
+    /// Closes the participation condition; gets the low-pass units' gains.
+    Complement,
 }
 
-/// Structure of the DVPP the operator serves.
+/// Grid-forming or grid-following control of a DER.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Form {
+    GridForming,
+    GridFollowing,
+}
+
+/// One DER the operator serves.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DerEntry {
+    pub name: String,
+    pub role: Role,
+    pub form: Form,
+    /// Converter rating of the whole unit, MVA.
+    pub s_rated: f64,
+    /// The part of the unit this entry stands for (ε or 1 - ε in a hybrid DVPP; 1 otherwise).
+    #[serde(default = "one")]
+    pub share: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// The DVPP the operator serves (`[model]` in config.toml).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct OperatorConfig {
-    /// Number of DERs in the DVPP.
-    pub ders: usize,
+    pub ders: Vec<DerEntry>,
 }
 
 impl Default for OperatorConfig {
+    /// Case study I: wind and PV low-pass, BESS the complement, all grid-forming.
     fn default() -> Self {
-        OperatorConfig { ders: 3 }
+        let der = |name: &str, role, s_rated| DerEntry {
+            name: name.into(),
+            role,
+            form: Form::GridForming,
+            s_rated,
+            share: 1.0,
+        };
+        OperatorConfig {
+            ders: vec![
+                der("wind", Role::LowPass, 46.0),
+                der("pv", Role::LowPass, 73.0),
+                der("bess", Role::Complement, 60.0),
+            ],
+        }
     }
 }
 
-/// `μ_k = P_k / Σ P`, bounded below by `mu_min` and renormalized; equal shares when `Σ P = 0`.
-pub fn dc_gains(available: &[f64], mu_min: f64) -> Vec<f64> {
-    let n = available.len();
-    let total: f64 = available.iter().map(|p| p.max(0.0)).sum();
-    let mut mu: Vec<f64> = if total > 0.0 {
-        available.iter().map(|p| p.max(0.0) / total).collect()
-    } else {
-        vec![1.0 / n as f64; n]
-    };
-    // Raise the units below the bound to it and take the difference from the others in
-    // proportion to their share; repeat until no unit is below (at most n rounds).
-    let mut fixed = vec![false; n];
-    for _ in 0..n {
-        let low: Vec<usize> = (0..n).filter(|&k| !fixed[k] && mu[k] < mu_min).collect();
-        if low.is_empty() {
-            break;
+impl OperatorConfig {
+    fn check(&self) -> Result<(), String> {
+        if self.ders.is_empty() || self.ders.len() > 32 {
+            return Err(format!(
+                "[model] ders: {} entries, expected 1..=32",
+                self.ders.len()
+            ));
         }
-        for &k in &low {
-            mu[k] = mu_min;
-            fixed[k] = true;
+        for (k, d) in self.ders.iter().enumerate() {
+            let at = format!("[model] ders[{}] '{}'", k + 1, d.name);
+            if !(d.s_rated.is_finite() && d.s_rated > 0.0) {
+                return Err(format!("{at}: s_rated = {} must be positive", d.s_rated));
+            }
+            if !(d.share > 0.0 && d.share <= 1.0) {
+                return Err(format!("{at}: share = {} must be in (0, 1]", d.share));
+            }
         }
-        let fixed_sum: f64 = (0..n).filter(|&k| fixed[k]).map(|k| mu[k]).sum();
-        let free_sum: f64 = (0..n).filter(|&k| !fixed[k]).map(|k| mu[k]).sum();
-        for k in (0..n).filter(|&k| !fixed[k]) {
-            mu[k] *= (1.0 - fixed_sum) / free_sum;
+        if !self.ders.iter().any(|d| d.role == Role::LowPass) {
+            return Err("[model] ders: no low-pass unit carries the steady state".into());
         }
+        Ok(())
     }
-    mu
+}
+
+/// Handles of one DER's variables.
+#[derive(Clone, Serialize, Deserialize)]
+struct DerVars {
+    p_avail: Real,
+    p: Real,
+    s_rated: Real,
+    mu_p: Option<Real>,
+    mu_q: Real,
+    mu_p_lpf: Vec<Real>,
+}
+
+/// Gains as sent: active for the low-pass units (in their order), reactive for all units.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+struct Gains {
+    p: Vec<f64>,
+    q: Vec<f64>,
+}
+
+/// Which degenerate input a warning was given for (each is logged once per episode).
+#[derive(Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+enum Degenerate {
+    NoAvailability,
+    NegativeAvailability(usize),
+    OverRating(usize),
+    NoReactiveCapacity,
+}
+
+/// The operator's variables and state.
+#[derive(Clone, Serialize, Deserialize)]
+pub struct Operator {
+    config: OperatorConfig,
+    s_base: Real,
+    s_dvpp: Real,
+    h: Real,
+    d: Real,
+    dq: Real,
+    mu_min: Real,
+    rate_limit: Real,
+    delay: Real,
+    ders: Vec<DerVars>,
+    pcc_p: Real,
+    pcc_q: Real,
+    pcc_f: Real,
+    pcc_v: Real,
+    ref_df: Real,
+    ref_dv: Real,
+    err_df: Real,
+    err_dv: Real,
+    sum_mu_p: Real,
+    sum_mu_q: Real,
+    /// `-T_pf` realized on Δp_pcc (state survives FMU state snapshots).
+    t_pf: Option<LtiSimulator>,
+    /// PCC operating point at initialization: p, q, v.
+    pcc0: [f64; 3],
+    /// Gains currently sent, and gains waiting out the communication delay (time, gains).
+    sent: Option<Gains>,
+    queue: VecDeque<(f64, Gains)>,
+    warned: Vec<Degenerate>,
 }
 
 impl Operator {
-    fn update(&mut self, s: &mut Store, ctx: &mut Context) {
-        let available: Vec<f64> = self.p_avail.iter().map(|&r| s[r]).collect();
-        if available.iter().all(|&p| p <= 0.0) && !self.warned_zero {
-            self.warned_zero = true;
-            ctx.warn("all DER availabilities are zero: dc gains fall back to equal shares");
+    fn low_pass(&self) -> impl Iterator<Item = usize> + '_ {
+        self.config
+            .ders
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.role == Role::LowPass)
+            .map(|(k, _)| k)
+    }
+
+    /// Warn once per episode: `active` says whether the condition holds now.
+    fn once(
+        &mut self,
+        ctx: &mut Context,
+        what: Degenerate,
+        active: bool,
+        message: impl FnOnce() -> String,
+    ) {
+        let seen = self.warned.contains(&what);
+        if active && !seen {
+            self.warned.push(what);
+            ctx.warn(message());
+        } else if !active && seen {
+            self.warned.retain(|w| *w != what);
         }
-        for (mu, &r) in dc_gains(&available, s[self.mu_min])
-            .into_iter()
-            .zip(&self.mu_p)
-        {
-            s[r] = mu;
+    }
+
+    /// The gains the current inputs call for.
+    fn target(&mut self, s: &Store, ctx: &mut Context) -> Result<Gains, ModelError> {
+        let s_base = s[self.s_base];
+        let lpf: Vec<usize> = self.low_pass().collect();
+        let mut weights = Vec::with_capacity(lpf.len());
+        for &k in &lpf {
+            let avail = s[self.ders[k].p_avail];
+            let name = self.config.ders[k].name.clone();
+            self.once(
+                ctx,
+                Degenerate::NegativeAvailability(k),
+                avail < 0.0,
+                || {
+                    format!(
+                        "DER {} '{name}': negative available power {avail} pu is taken as 0",
+                        k + 1
+                    )
+                },
+            );
+            weights.push(avail.max(0.0) * self.config.ders[k].share);
         }
+        let none = weights.iter().all(|&w| w == 0.0);
+        self.once(ctx, Degenerate::NoAvailability, none, || {
+            "all low-pass DERs report zero available power: active dc gains fall back to equal shares".into()
+        });
+        let floored: Vec<bool> = lpf
+            .iter()
+            .map(|&k| self.config.ders[k].form == Form::GridForming)
+            .collect();
+        let p = renormalize_with_floor(&weights, &floored, s[self.mu_min])
+            .map_err(|e| ModelError(format!("active dc gains: {e}")))?;
+
+        let mut capacity = Vec::with_capacity(self.ders.len());
+        for k in 0..self.ders.len() {
+            let rating = s[self.ders[k].s_rated] * self.config.ders[k].share;
+            let p_mw = s[self.ders[k].p] * s_base;
+            let name = self.config.ders[k].name.clone();
+            self.once(ctx, Degenerate::OverRating(k), p_mw.abs() > rating, || {
+                format!("DER {} '{name}': |p| = {:.2} MW exceeds its rating {rating:.2} MVA: no reactive capacity", k + 1, p_mw.abs())
+            });
+            capacity.push(reactive_capacity(rating, p_mw));
+        }
+        let none = capacity.iter().all(|&c| c == 0.0);
+        self.once(ctx, Degenerate::NoReactiveCapacity, none, || {
+            "no DER has reactive capacity left: reactive dc gains fall back to equal shares".into()
+        });
+        let q = renormalize_with_floor(&capacity, &vec![false; capacity.len()], 0.0)
+            .map_err(|e| ModelError(format!("reactive dc gains: {e}")))?;
+        Ok(Gains { p, q })
+    }
+
+    /// Move the sent gains toward `target` by at most `rate · h` per gain; the step is scaled
+    /// as a whole, so the sums stay exactly where they were.
+    fn rate_limited(sent: &Gains, target: Gains, max_change: f64) -> Gains {
+        let limit = |from: &[f64], to: Vec<f64>| -> Vec<f64> {
+            let largest = from
+                .iter()
+                .zip(&to)
+                .map(|(a, b)| (b - a).abs())
+                .fold(0.0, f64::max);
+            if largest <= max_change {
+                return to;
+            }
+            let scale = max_change / largest;
+            from.iter()
+                .zip(&to)
+                .map(|(a, b)| a + scale * (b - a))
+                .collect()
+        };
+        Gains {
+            p: limit(&sent.p, target.p),
+            q: limit(&sent.q, target.q),
+        }
+    }
+
+    fn write_gains(&self, s: &mut Store, g: &Gains) {
+        let lpf: Vec<usize> = self.low_pass().collect();
+        for (j, &k) in lpf.iter().enumerate() {
+            if let Some(r) = self.ders[k].mu_p {
+                s[r] = g.p[j];
+            }
+        }
+        for (k, der) in self.ders.iter().enumerate() {
+            s[der.mu_q] = g.q[k];
+            for (j, &r) in der.mu_p_lpf.iter().enumerate() {
+                s[r] = g.p[j];
+            }
+        }
+        s[self.sum_mu_p] = g.p.iter().sum();
+        s[self.sum_mu_q] = g.q.iter().sum();
+    }
+
+    fn desired_dv(&self, s: &Store) -> f64 {
+        -s[self.dq] * (s[self.pcc_q] - self.pcc0[1]) * s[self.s_base] / s[self.s_dvpp]
     }
 }
 
@@ -82,95 +300,264 @@ impl Model for Operator {
     const IDENTIFIER: &'static str = "dvpp_operator";
     const NAME: &'static str = "DVPP operator";
     const DESCRIPTION: &'static str =
-        "DVPP operator: ADPF dc gains mu_p proportional to the DERs' available power, summing to 1";
+        "DVPP operator: online ADPF dc gains (sums exactly 1) and the desired aggregate response T_des";
 
     fn declare(
         config: &OperatorConfig,
         _: Option<&std::path::Path>,
         v: &mut Variables,
     ) -> Result<Self, String> {
-        let n = config.ders;
-        if !(1..=64).contains(&n) {
-            return Err(format!("[model] ders = {n} is outside 1..=64"));
-        }
-        let mu_min = v.real(
-            Spec::parameter("mu_min", 0.05, "1", "lower bound of a DER's dc gain")
-                .range(0.0, 1.0 / n as f64),
+        config.check()?;
+        let param = |v: &mut Variables, name: &str, start: f64, unit: &str, what: &str| {
+            v.real(Spec::parameter(name, start, unit, what))
+        };
+        let s_base = v.real(Spec::parameter("S_base", 100.0, "MVA", "system base power").min(1e-3));
+        let s_dvpp = v.real(
+            Spec::parameter(
+                "S_dvpp",
+                96.0,
+                "MVA",
+                "DVPP base power T_des is specified on",
+            )
+            .min(1e-3),
         );
-        let p_avail: Vec<Real> = (1..=n)
-            .map(|k| {
-                v.real(Spec::input(
-                    &format!("der[{k}].P_avail"),
-                    0.5,
-                    "pu",
-                    &format!("available active power of DER {k}, on S_base"),
-                ))
-            })
+        let h = v.real(
+            Spec::parameter("Tdes.H", 5.55, "s", "virtual inertia of T_pf = 1/(H s + D)").min(1e-6),
+        );
+        let d = v.real(
+            Spec::parameter("Tdes.D", 33.33, "pu", "damping of T_pf = 1/(H s + D)").min(1e-6),
+        );
+        let dq = v.real(Spec::parameter("Tdes.Dq", 0.01, "pu", "q-v droop: T_qv = Dq").min(1e-9));
+        let mu_min = v.real(
+            Spec::parameter(
+                "mu_min",
+                0.05,
+                "1",
+                "lower bound of a grid-forming low-pass unit's active dc gain",
+            )
+            .range(0.0, 0.3),
+        );
+        let rate_limit = param(
+            v,
+            "rate_limit",
+            0.0,
+            "1/s",
+            "largest change of a dc gain per second (0: none)",
+        );
+        let delay = param(
+            v,
+            "delay",
+            0.0,
+            "s",
+            "communication delay of the dc gains (0: none)",
+        );
+        let lpf: Vec<usize> = config
+            .ders
+            .iter()
+            .enumerate()
+            .filter(|(_, d)| d.role == Role::LowPass)
+            .map(|(k, _)| k)
             .collect();
-        let names: Vec<String> = (1..=n).map(|k| format!("der[{k}].P_avail")).collect();
-        let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        let mu_p = (1..=n)
-            .map(|k| {
-                v.real(
-                    Spec::output(
-                        &format!("der[{k}].mu_p"),
-                        "1",
-                        &format!("ADPF dc gain of DER {k}'s p-f channel"),
+
+        let mut ders = Vec::with_capacity(config.ders.len());
+        for (k, entry) in config.ders.iter().enumerate() {
+            let n = |s: &str| format!("der[{}].{s}", k + 1);
+            let who = format!("DER {} ({})", k + 1, entry.name);
+            ders.push(DerVars {
+                s_rated: v.real(
+                    Spec::parameter(
+                        &n("S_rated"),
+                        entry.s_rated,
+                        "MVA",
+                        &format!("converter rating of {who}"),
                     )
-                    .initial_dependencies(&names),
-                )
-            })
+                    .min(1e-3),
+                ),
+                p_avail: v.real(Spec::input(
+                    &n("P_avail"),
+                    entry.s_rated / 200.0,
+                    "pu",
+                    &format!("available active power of {who}, on S_base"),
+                )),
+                p: v.real(Spec::input(
+                    &n("p"),
+                    0.0,
+                    "pu",
+                    &format!("active power of {who}, on S_base (for its PQ capability)"),
+                )),
+                mu_p: None,
+                mu_q: Real(0),
+                mu_p_lpf: Vec::new(),
+            });
+            v.real(Spec::input(
+                &n("q"),
+                0.0,
+                "pu",
+                &format!("reactive power of {who}, on S_base (monitoring)"),
+            ));
+        }
+        let deps: Vec<String> = (1..=config.ders.len())
+            .flat_map(|k| [format!("der[{k}].P_avail"), format!("der[{k}].p")])
             .collect();
+        let deps: Vec<&str> = deps.iter().map(String::as_str).collect();
+        for (k, entry) in config.ders.iter().enumerate() {
+            let n = |s: &str| format!("der[{}].{s}", k + 1);
+            let who = format!("DER {} ({})", k + 1, entry.name);
+            if entry.role == Role::LowPass {
+                ders[k].mu_p = Some(
+                    v.real(
+                        Spec::output(&n("mu_p"), "1", &format!("active ADPF dc gain of {who}"))
+                            .initial_dependencies(&deps),
+                    ),
+                );
+            }
+            ders[k].mu_q = v.real(
+                Spec::output(&n("mu_q"), "1", &format!("reactive ADPF dc gain of {who}"))
+                    .initial_dependencies(&deps),
+            );
+            if entry.role == Role::Complement {
+                ders[k].mu_p_lpf = lpf
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &l)| {
+                        let what = format!(
+                            "active dc gain of low-pass DER {} ({}) that {who} complements",
+                            l + 1,
+                            config.ders[l].name
+                        );
+                        v.real(
+                            Spec::output(&n(&format!("mu_p_lpf[{}]", j + 1)), "1", &what)
+                                .initial_dependencies(&deps),
+                        )
+                    })
+                    .collect();
+            }
+        }
+        let pcc = |v: &mut Variables, name: &str, start: f64, what: &str| {
+            v.real(Spec::input(name, start, "pu", what))
+        };
+        let out = |v: &mut Variables, name: &str, unit: &str, what: &str| {
+            v.real(Spec::output(name, unit, what))
+        };
         Ok(Operator {
+            config: config.clone(),
+            s_base,
+            s_dvpp,
+            h,
+            d,
+            dq,
             mu_min,
-            p_avail,
-            mu_p,
-            warned_zero: false,
+            rate_limit,
+            delay,
+            ders,
+            pcc_p: pcc(v, "pcc.p", 0.0, "DVPP active power at the PCC, on S_base"),
+            pcc_q: pcc(v, "pcc.q", 0.0, "DVPP reactive power at the PCC, on S_base"),
+            pcc_f: pcc(v, "pcc.f", 1.0, "PCC frequency, pu of f_nom"),
+            pcc_v: pcc(v, "pcc.v", 1.0, "PCC voltage magnitude"),
+            ref_df: out(
+                v,
+                "ref.df",
+                "pu",
+                "desired frequency deviation -T_pf Δp_pcc, pu of f_nom",
+            ),
+            ref_dv: out(v, "ref.dv", "pu", "desired voltage deviation -T_qv Δq_pcc"),
+            err_df: out(
+                v,
+                "err.df",
+                "pu",
+                "measured minus desired frequency deviation",
+            ),
+            err_dv: out(
+                v,
+                "err.dv",
+                "pu",
+                "measured minus desired voltage deviation",
+            ),
+            sum_mu_p: out(
+                v,
+                "check.sum_mu_p",
+                "1",
+                "Σ μ_p over the low-pass units as sent (participation: 1)",
+            ),
+            sum_mu_q: out(
+                v,
+                "check.sum_mu_q",
+                "1",
+                "Σ μ_q over all units as sent (participation: 1)",
+            ),
+            t_pf: None,
+            pcc0: [0.0, 0.0, 1.0],
+            sent: None,
+            queue: VecDeque::new(),
+            warned: Vec::new(),
         })
     }
 
     fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
-        self.update(s, ctx);
+        for (name, r) in [("rate_limit", self.rate_limit), ("delay", self.delay)] {
+            if s[r] < 0.0 {
+                return Err(format!("parameter '{name}' = {} must not be negative", s[r]).into());
+            }
+        }
+        // Only the p-f channel is simulated here; T_qv = Dq is static (the roll-off is irrelevant).
+        let tdes = TDes::inertia_droop(s[self.h], s[self.d], s[self.dq], 1.0)
+            .map_err(|e| ModelError(format!("parameters 'Tdes.H', 'Tdes.D', 'Tdes.Dq': {e}")))?;
+        self.t_pf = Some(tdes.pf_simulator(Hold::Zero));
+        self.pcc0 = [s[self.pcc_p], s[self.pcc_q], s[self.pcc_v]];
+        self.warned.clear();
+        self.queue.clear();
+        let gains = self.target(s, ctx)?;
+        self.write_gains(s, &gains);
+        self.sent = Some(gains);
+        for r in [self.ref_df, self.ref_dv, self.err_df, self.err_dv] {
+            s[r] = 0.0;
+        }
+        s[self.err_df] = s[self.pcc_f] - 1.0;
         Ok(())
     }
 
     fn do_step(
         &mut self,
         s: &mut Store,
-        _t: f64,
-        _h: f64,
+        t: f64,
+        h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        self.update(s, ctx);
+        // Gains: target now, delayed by the communication delay, then rate limited.
+        let target = self.target(s, ctx)?;
+        let delay = s[self.delay];
+        self.queue.push_back((t + h, target));
+        let mut due = None;
+        while self
+            .queue
+            .front()
+            .is_some_and(|(at, _)| *at <= t + h - delay + 1e-12)
+        {
+            due = self.queue.pop_front().map(|(_, g)| g);
+        }
+        let sent = self.sent.take().expect("initialized");
+        let next = match due {
+            Some(g) if s[self.rate_limit] > 0.0 => {
+                Self::rate_limited(&sent, g, s[self.rate_limit] * h)
+            }
+            Some(g) => g,
+            None => sent,
+        };
+        self.write_gains(s, &next);
+        self.sent = Some(next);
+
+        // Desired response on the DVPP base, input held over the step.
+        let dp = (s[self.pcc_p] - self.pcc0[0]) * s[self.s_base] / s[self.s_dvpp];
+        let t_pf = self.t_pf.as_mut().expect("initialized");
+        s[self.ref_df] = -t_pf.step(dp, h);
+        s[self.ref_dv] = self.desired_dv(s);
+        s[self.err_df] = (s[self.pcc_f] - 1.0) - s[self.ref_df];
+        s[self.err_dv] = (s[self.pcc_v] - self.pcc0[2]) - s[self.ref_dv];
         Ok(())
     }
 }
 
 fmi_export::export_fmu!(Operator);
-
-#[cfg(test)]
-mod tests {
-    use super::dc_gains;
-
-    #[test]
-    fn gains_sum_to_one_and_respect_the_bound() {
-        for avail in [
-            vec![0.4, 0.6, 0.0],
-            vec![0.0, 0.0, 0.0],
-            vec![1.0, 0.01, 0.02],
-            vec![0.3, 0.3, 0.4],
-        ] {
-            let mu = dc_gains(&avail, 0.05);
-            assert!(
-                (mu.iter().sum::<f64>() - 1.0).abs() < 1e-12,
-                "{avail:?} -> {mu:?}"
-            );
-            assert!(mu.iter().all(|&m| m >= 0.05 - 1e-15), "{avail:?} -> {mu:?}");
-        }
-        let mu = dc_gains(&[0.2, 0.6, 0.2], 0.05);
-        assert!((mu[1] - 0.6).abs() < 1e-15);
-    }
-}
 
 #[cfg(test)]
 mod golden {

@@ -42,7 +42,8 @@ fn cargo() -> Command {
 const USAGE: &str = "usage: cargo xtask <task>
 
 tasks:
-  bundle   build the FMUs in release; write dist/default/<id>.fmu and dist/variants/<id>-<variant>.fmu
+  bundle [ID...]  build the FMUs (all, or those named) in release; write dist/default/<id>.fmu
+                  and dist/variants/<id>-<variant>.fmu
   bench    bundle, then measure ns per fmi2DoStep of each benchmark FMU
   demo     bundle, then simulate every default FMU headless; results in results/
   test     bundle, run the Rust tests, then the Python (fmpy) tests in target/venv
@@ -51,7 +52,7 @@ tasks:
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
-        Some("bundle") => bundle().map(|_| ()),
+        Some("bundle") => bundle(&args[1..]).map(|_| ()),
         Some("demo") => demo(),
         Some("bench") => bench(),
         Some("test") => test(),
@@ -67,11 +68,11 @@ fn main() -> ExitCode {
     }
 }
 
-/// Build the cdylibs and describe binaries in release mode.
-fn build_release() -> Result {
+/// Build the cdylibs and describe binaries of `fmus` in release mode.
+fn build_release(fmus: &[&catalog::Fmu]) -> Result {
     let mut c = cargo();
     c.args(["build", "--release"]);
-    for fmu in FMUS {
+    for fmu in fmus {
         c.args(["--package", fmu.package]);
     }
     run(&mut c)
@@ -153,22 +154,39 @@ fn bundle_one(
     Ok(())
 }
 
-/// Build and bundle the default FMUs into `dist/default/` and the variants into
-/// `dist/variants/`; returns the default FMUs' paths.
-fn bundle() -> Result<Vec<PathBuf>> {
-    build_release()?;
+/// Build and bundle the default FMUs (all, or those whose ids are in `only`) into
+/// `dist/default/` and their variants into `dist/variants/`; returns the default FMUs' paths.
+fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
+    if let Some(unknown) = only
+        .iter()
+        .find(|id| !FMUS.iter().any(|f| f.id == id.as_str()))
+    {
+        let known: Vec<&str> = FMUS.iter().map(|f| f.id).collect();
+        return Err(format!(
+            "unknown FMU '{unknown}'; the FMUs are {}",
+            known.join(", ")
+        ));
+    }
+    let chosen: Vec<&catalog::Fmu> = FMUS
+        .iter()
+        .filter(|f| only.is_empty() || only.iter().any(|id| id == f.id))
+        .collect();
+    build_release(&chosen)?;
     let dist = root().join("dist");
     for sub in ["default", "variants"] {
         std::fs::create_dir_all(dist.join(sub)).map_err(|e| e.to_string())?;
     }
     let mut written = Vec::new();
-    for fmu in FMUS {
+    for fmu in &chosen {
         let out = dist.join("default").join(format!("{}.fmu", fmu.id));
         let config = "# Default configuration: declared start values, default experiment.\n";
         bundle_one(fmu.package, fmu.id, fmu.id, config, &[], &out)?;
         written.push(out);
     }
-    for v in VARIANTS {
+    for v in VARIANTS
+        .iter()
+        .filter(|v| chosen.iter().any(|f| f.id == v.id))
+    {
         let fmu = FMUS
             .iter()
             .find(|f| f.id == v.id)
@@ -189,7 +207,7 @@ fn bundle() -> Result<Vec<PathBuf>> {
 }
 
 fn bench() -> Result {
-    bundle()?;
+    bundle(&[])?;
     let mut c = cargo();
     c.args([
         "run",
@@ -215,7 +233,7 @@ fn bench() -> Result {
 }
 
 fn demo() -> Result {
-    let fmus = bundle()?;
+    let fmus = bundle(&[])?;
     let results = root().join("results");
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;
     for fmu in &fmus {
@@ -269,11 +287,20 @@ fn python_env() -> Result<PathBuf> {
 
 fn test() -> Result {
     let started = std::time::Instant::now();
-    bundle()?;
+    bundle(&[])?;
     let dist = root().join("dist").join("default");
     run(cargo()
         .args(["test", "--workspace"])
         .env("DVPP_DIST", &dist))?;
+    // The 300 s grid dynamics tests are ignored in debug builds; run them optimized.
+    run(cargo().args([
+        "test",
+        "--release",
+        "--package",
+        "fmu-grid",
+        "--test",
+        "dynamics",
+    ]))?;
     let python = python_env()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "tests/python"])

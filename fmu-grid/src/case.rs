@@ -1,0 +1,903 @@
+//! Case description of the reduced grid: the TOML file format, its serde types and validation.
+//!
+//! A case holds everything needed to build a [`crate::Grid`]: the network (buses, π-model lines,
+//! transformers, shunts, loads), the synchronous machines with their governors and exciters, the
+//! power-flow set points, the DER slots the DVPP controllers plug into, the PCC definition and the
+//! scheduled events. Validation happens in [`Case::validate`], which [`Case::from_toml_str`] calls.
+
+use serde::{Deserialize, Serialize};
+use std::collections::{BTreeMap, BTreeSet, VecDeque};
+use std::fmt;
+
+/// Everything that can be wrong with a case file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub enum CaseError {
+    /// TOML syntax or schema error (missing field, unknown model type, wrong value type).
+    Parse(String),
+    /// No bus at all, or a bus id defined twice.
+    DuplicateBus(u32),
+    /// The case has no bus.
+    NoBus,
+    /// An element refers to a bus that is not defined.
+    UnknownBus { element: String, bus: u32 },
+    /// An element refers to a machine, slot or branch that is not defined.
+    UnknownReference { element: String, name: String },
+    /// Two elements share a name that must be unique.
+    DuplicateName(String),
+    /// Series impedance zero or negative (x ≤ 0 or r < 0 or |z| = 0).
+    NonPositiveImpedance { element: String, r: f64, x: f64 },
+    /// A bus cannot be reached from the slack bus through in-service branches.
+    IslandedBus(u32),
+    /// Exactly one slack bus is required.
+    Slack(String),
+    /// A parameter is outside its admissible range.
+    OutOfRange {
+        element: String,
+        parameter: String,
+        value: f64,
+        expected: String,
+    },
+    /// A structural inconsistency (PV bus without a source, exciter on a classical machine...).
+    Inconsistent(String),
+}
+
+impl fmt::Display for CaseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            CaseError::Parse(m) => write!(f, "case file could not be parsed: {m}"),
+            CaseError::DuplicateBus(b) => write!(f, "bus {b} is defined more than once"),
+            CaseError::NoBus => write!(f, "the case defines no bus"),
+            CaseError::UnknownBus { element, bus } => {
+                write!(f, "{element} refers to bus {bus}, which is not defined")
+            }
+            CaseError::UnknownReference { element, name } => {
+                write!(f, "{element} refers to `{name}`, which is not defined")
+            }
+            CaseError::DuplicateName(n) => write!(f, "name `{n}` is used more than once"),
+            CaseError::NonPositiveImpedance { element, r, x } => write!(
+                f,
+                "{element} has a non-positive series impedance (r = {r}, x = {x}); need r >= 0, x > 0"
+            ),
+            CaseError::IslandedBus(b) => {
+                write!(f, "bus {b} is islanded (not connected to the slack bus)")
+            }
+            CaseError::Slack(m) => write!(f, "slack bus: {m}"),
+            CaseError::OutOfRange { element, parameter, value, expected } => write!(
+                f,
+                "{element}: parameter `{parameter}` = {value} is out of range (expected {expected})"
+            ),
+            CaseError::Inconsistent(m) => write!(f, "inconsistent case: {m}"),
+        }
+    }
+}
+
+impl std::error::Error for CaseError {}
+
+/// Power-flow type of a bus.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum BusKind {
+    Slack,
+    Pv,
+    Pq,
+}
+
+fn default_pq() -> BusKind {
+    BusKind::Pq
+}
+fn one() -> f64 {
+    1.0
+}
+fn yes() -> bool {
+    true
+}
+
+/// A bus. `v_set` is the voltage set point of a PV or slack bus, `angle_deg` the slack angle.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Bus {
+    pub id: u32,
+    #[serde(default)]
+    pub name: Option<String>,
+    #[serde(default = "default_pq")]
+    pub kind: BusKind,
+    #[serde(default = "one")]
+    pub v_set: f64,
+    #[serde(default)]
+    pub angle_deg: f64,
+    /// Nominal voltage, informational only.
+    #[serde(default)]
+    pub base_kv: Option<f64>,
+}
+
+/// π-model line, r, x, b in pu on the system base (b = total charging susceptance).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Line {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub from: u32,
+    pub to: u32,
+    #[serde(default)]
+    pub r: f64,
+    pub x: f64,
+    #[serde(default)]
+    pub b: f64,
+    #[serde(default = "yes")]
+    pub in_service: bool,
+}
+
+/// Two-winding transformer, series r, x in pu on the system base; `tap` is the off-nominal ratio
+/// on the `from` side (ratio tap:1).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Transformer {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub from: u32,
+    pub to: u32,
+    #[serde(default)]
+    pub r: f64,
+    pub x: f64,
+    #[serde(default)]
+    pub tap: Option<f64>,
+    #[serde(default = "yes")]
+    pub in_service: bool,
+}
+
+/// Fixed shunt admittance g + jb in pu on the system base at 1 pu voltage (b > 0: capacitive).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Shunt {
+    pub bus: u32,
+    #[serde(default)]
+    pub g: f64,
+    #[serde(default)]
+    pub b: f64,
+}
+
+/// Load model used in the dynamic simulation (the power flow always treats loads as P + jQ).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LoadModel {
+    /// Admittance fixed from the power-flow voltage (default).
+    #[default]
+    ConstantImpedance,
+    /// Constant P + jQ; turns into a constant impedance below 0.7 pu voltage.
+    ConstantPower,
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Load {
+    pub bus: u32,
+    pub p_mw: f64,
+    #[serde(default)]
+    pub q_mvar: f64,
+    #[serde(default)]
+    pub model: LoadModel,
+}
+
+/// Synchronous-machine model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MachineModel {
+    /// Two-axis (flux-decay in d and q) model: states δ, ω, E'q, E'd.
+    TwoAxis,
+    /// Classical model: constant E' behind x'd, states δ, ω.
+    Classical,
+}
+
+/// The base the machine's H, D and reactances are given on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum ParamBase {
+    /// System base `base_mva`.
+    #[default]
+    System,
+    /// The machine's own `rating_mva`.
+    Machine,
+}
+
+/// Turbine-governor. All powers in pu of the machine rating; `r` is the permanent droop.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Governor {
+    /// Steam: droop 1/r, governor lag t_g, steam chest t_ch, reheater t_rh with HP fraction f_hp.
+    TgovReheat {
+        r: f64,
+        t_g: f64,
+        t_ch: f64,
+        t_rh: f64,
+        f_hp: f64,
+        #[serde(default = "default_pmax")]
+        p_max: f64,
+        #[serde(default)]
+        p_min: f64,
+    },
+    /// Hydro: droop 1/r, transient-droop lead-lag (t_r s + 1)/(t_2 s + 1), gate servo t_g,
+    /// water column (1 - t_w s)/(1 + 0.5 t_w s).
+    Hygov {
+        r: f64,
+        t_r: f64,
+        t_2: f64,
+        t_g: f64,
+        t_w: f64,
+        #[serde(default = "default_pmax")]
+        p_max: f64,
+        #[serde(default)]
+        p_min: f64,
+    },
+}
+
+fn default_pmax() -> f64 {
+    10.0
+}
+
+/// Excitation system (voltage regulator), on the machine's field-voltage pu.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Exciter {
+    /// Simplified exciter: lead-lag (ta_tb·t_b s + 1)/(t_b s + 1), then k/(t_e s + 1), limited.
+    Sexs {
+        k: f64,
+        ta_tb: f64,
+        t_b: f64,
+        t_e: f64,
+        #[serde(default = "default_emin")]
+        e_min: f64,
+        #[serde(default = "default_emax")]
+        e_max: f64,
+    },
+    /// IEEE type 1 (DC exciter with rate feedback); saturation S_E = se_a·exp(se_b·E_fd).
+    IeeeT1 {
+        ka: f64,
+        ta: f64,
+        ke: f64,
+        te: f64,
+        kf: f64,
+        tf: f64,
+        #[serde(default)]
+        se_a: f64,
+        #[serde(default)]
+        se_b: f64,
+        #[serde(default = "default_emin")]
+        vr_min: f64,
+        #[serde(default = "default_emax")]
+        vr_max: f64,
+    },
+}
+
+fn default_emin() -> f64 {
+    -10.0
+}
+fn default_emax() -> f64 {
+    10.0
+}
+
+/// Synchronous machine with optional governor and exciter.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Machine {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub bus: u32,
+    pub model: MachineModel,
+    pub rating_mva: f64,
+    /// Base of `h`, `d`, `ra` and the reactances.
+    #[serde(default)]
+    pub base: ParamBase,
+    pub h: f64,
+    #[serde(default)]
+    pub d: f64,
+    #[serde(default)]
+    pub ra: f64,
+    pub xd: f64,
+    pub xd_p: f64,
+    #[serde(default)]
+    pub xq: Option<f64>,
+    #[serde(default)]
+    pub xq_p: Option<f64>,
+    #[serde(default)]
+    pub td0_p: Option<f64>,
+    #[serde(default)]
+    pub tq0_p: Option<f64>,
+    /// Active-power dispatch (ignored at the slack bus).
+    #[serde(default)]
+    pub p_mw: f64,
+    /// Reactive dispatch, used only if the machine sits on a PQ bus.
+    #[serde(default)]
+    pub q_mvar: f64,
+    #[serde(default)]
+    pub governor: Option<Governor>,
+    #[serde(default)]
+    pub exciter: Option<Exciter>,
+}
+
+/// DER slot kind.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DerKind {
+    /// Voltage source E∠θ behind the slot impedance.
+    GridForming,
+    /// P/Q current injection at the bus.
+    GridFollowing,
+}
+
+/// A DER slot: where a DER FMU plugs into the grid.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DerSlot {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub kind: DerKind,
+    pub bus: u32,
+    pub rating_mva: f64,
+    /// Filter + transformer series resistance, pu on the slot rating.
+    #[serde(default)]
+    pub r: f64,
+    /// Filter + transformer series reactance, pu on the slot rating.
+    pub x: f64,
+    /// Active dispatch, MW (at a slack bus the slack power is shared by rating instead).
+    #[serde(default)]
+    pub p_mw: f64,
+    /// Reactive dispatch, Mvar; only used on a PQ bus (on PV/slack buses Q is shared by rating).
+    #[serde(default)]
+    pub q_mvar: f64,
+}
+
+/// A branch whose flow counts towards the PCC power (flow leaving `at_bus` into the branch).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PccBranch {
+    pub branch: String,
+    pub at_bus: u32,
+}
+
+fn default_tf() -> f64 {
+    0.02
+}
+
+/// Point of common coupling: which slots and branch flows are summed into `pcc.p`, `pcc.q`, and
+/// the bus whose voltage and frequency are reported.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Pcc {
+    pub bus: u32,
+    /// 1-based DER slot indices.
+    #[serde(default)]
+    pub slots: Vec<usize>,
+    #[serde(default)]
+    pub branches: Vec<PccBranch>,
+    /// Time constant of the first-order filter on the angle derivative, s.
+    #[serde(default = "default_tf")]
+    pub f_filter_t: f64,
+}
+
+/// Scheduled event.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum Event {
+    /// Load change at `bus`: dP + j dQ at the pre-event bus voltage (positive = more load).
+    LoadStep {
+        time: f64,
+        bus: u32,
+        dp_mw: f64,
+        #[serde(default)]
+        dq_mvar: f64,
+        #[serde(default)]
+        model: LoadModel,
+    },
+    /// Disconnect machine number `machine` (1-based).
+    GeneratorTrip { time: f64, machine: usize },
+    /// Open branch `branch` (line or transformer name).
+    LineTrip { time: f64, branch: String },
+}
+
+impl Event {
+    pub fn time(&self) -> f64 {
+        match self {
+            Event::LoadStep { time, .. }
+            | Event::GeneratorTrip { time, .. }
+            | Event::LineTrip { time, .. } => *time,
+        }
+    }
+}
+
+/// A complete case.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Case {
+    #[serde(default)]
+    pub name: String,
+    /// Where the data come from (free text).
+    #[serde(default)]
+    pub source: String,
+    pub base_mva: f64,
+    pub f_nom: f64,
+    #[serde(rename = "bus")]
+    pub buses: Vec<Bus>,
+    #[serde(rename = "line", default)]
+    pub lines: Vec<Line>,
+    #[serde(rename = "transformer", default)]
+    pub transformers: Vec<Transformer>,
+    #[serde(rename = "shunt", default)]
+    pub shunts: Vec<Shunt>,
+    #[serde(rename = "load", default)]
+    pub loads: Vec<Load>,
+    #[serde(rename = "machine", default)]
+    pub machines: Vec<Machine>,
+    #[serde(rename = "der", default)]
+    pub ders: Vec<DerSlot>,
+    #[serde(default)]
+    pub pcc: Option<Pcc>,
+    #[serde(rename = "event", default)]
+    pub events: Vec<Event>,
+}
+
+/// Branch as seen by the network code: lines and transformers in one list (lines first).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct BranchData {
+    pub name: String,
+    pub from: usize,
+    pub to: usize,
+    pub r: f64,
+    pub x: f64,
+    pub b: f64,
+    pub tap: f64,
+    pub in_service: bool,
+}
+
+fn check_range(
+    element: &str,
+    parameter: &str,
+    value: f64,
+    ok: bool,
+    expected: &str,
+) -> Result<(), CaseError> {
+    if ok && value.is_finite() {
+        Ok(())
+    } else {
+        Err(CaseError::OutOfRange {
+            element: element.to_string(),
+            parameter: parameter.to_string(),
+            value,
+            expected: expected.to_string(),
+        })
+    }
+}
+
+/// Series impedance admissible: r ≥ 0, x > 0, both finite.
+fn impedance_ok(r: f64, x: f64) -> bool {
+    r.is_finite() && x.is_finite() && r >= 0.0 && x > 0.0
+}
+
+fn pos(element: &str, parameter: &str, v: f64) -> Result<(), CaseError> {
+    check_range(element, parameter, v, v > 0.0, "> 0")
+}
+fn nonneg(element: &str, parameter: &str, v: f64) -> Result<(), CaseError> {
+    check_range(element, parameter, v, v >= 0.0, ">= 0")
+}
+
+impl Case {
+    /// Parse and validate a case.
+    pub fn from_toml_str(s: &str) -> Result<Case, CaseError> {
+        let case: Case = toml::from_str(s).map_err(|e| CaseError::Parse(e.to_string()))?;
+        case.validate()?;
+        Ok(case)
+    }
+
+    /// Built-in case by name: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid`.
+    pub fn builtin(name: &str) -> Option<Case> {
+        let text = builtin_text(name)?;
+        Some(Case::from_toml_str(text).expect("built-in case is valid"))
+    }
+
+    /// Names of the built-in cases.
+    pub fn builtin_names() -> &'static [&'static str] {
+        &["ieee9", "ieee9_dvpp", "ieee9_hybrid"]
+    }
+
+    /// Map from bus id to 0-based index.
+    pub fn bus_index(&self) -> BTreeMap<u32, usize> {
+        self.buses
+            .iter()
+            .enumerate()
+            .map(|(i, b)| (b.id, i))
+            .collect()
+    }
+
+    /// All branches (lines, then transformers) with bus indices and default names.
+    pub fn branches(&self) -> Vec<BranchData> {
+        let idx = self.bus_index();
+        let mut out = Vec::new();
+        for l in &self.lines {
+            out.push(BranchData {
+                name: l
+                    .name
+                    .clone()
+                    .unwrap_or_else(|| format!("L{}-{}", l.from, l.to)),
+                from: idx[&l.from],
+                to: idx[&l.to],
+                r: l.r,
+                x: l.x,
+                b: l.b,
+                tap: 1.0,
+                in_service: l.in_service,
+            });
+        }
+        for t in &self.transformers {
+            out.push(BranchData {
+                name: t
+                    .name
+                    .clone()
+                    .unwrap_or_else(|| format!("T{}-{}", t.from, t.to)),
+                from: idx[&t.from],
+                to: idx[&t.to],
+                r: t.r,
+                x: t.x,
+                b: 0.0,
+                tap: t.tap.unwrap_or(1.0),
+                in_service: t.in_service,
+            });
+        }
+        out
+    }
+
+    /// Check the case; the first problem found is returned.
+    pub fn validate(&self) -> Result<(), CaseError> {
+        pos("case", "base_mva", self.base_mva)?;
+        pos("case", "f_nom", self.f_nom)?;
+        if self.buses.is_empty() {
+            return Err(CaseError::NoBus);
+        }
+        let mut ids = BTreeSet::new();
+        for b in &self.buses {
+            if !ids.insert(b.id) {
+                return Err(CaseError::DuplicateBus(b.id));
+            }
+            let el = format!("bus {}", b.id);
+            check_range(
+                &el,
+                "v_set",
+                b.v_set,
+                b.v_set > 0.5 && b.v_set < 1.5,
+                "0.5 < v_set < 1.5",
+            )?;
+        }
+        let bus_ok = |element: String, bus: u32| -> Result<(), CaseError> {
+            if ids.contains(&bus) {
+                Ok(())
+            } else {
+                Err(CaseError::UnknownBus { element, bus })
+            }
+        };
+        let slacks: Vec<u32> = self
+            .buses
+            .iter()
+            .filter(|b| b.kind == BusKind::Slack)
+            .map(|b| b.id)
+            .collect();
+        match slacks.len() {
+            0 => return Err(CaseError::Slack("no slack bus defined".into())),
+            1 => {}
+            _ => {
+                return Err(CaseError::Slack(format!(
+                    "more than one slack bus: {slacks:?}"
+                )))
+            }
+        }
+        for (i, l) in self.lines.iter().enumerate() {
+            let el = format!("line {} ({}-{})", i + 1, l.from, l.to);
+            bus_ok(el.clone(), l.from)?;
+            bus_ok(el.clone(), l.to)?;
+            if l.from == l.to {
+                return Err(CaseError::Inconsistent(format!(
+                    "{el} connects a bus to itself"
+                )));
+            }
+            if !impedance_ok(l.r, l.x) {
+                return Err(CaseError::NonPositiveImpedance {
+                    element: el,
+                    r: l.r,
+                    x: l.x,
+                });
+            }
+            nonneg(&el, "b", l.b)?;
+        }
+        for (i, t) in self.transformers.iter().enumerate() {
+            let el = format!("transformer {} ({}-{})", i + 1, t.from, t.to);
+            bus_ok(el.clone(), t.from)?;
+            bus_ok(el.clone(), t.to)?;
+            if t.from == t.to {
+                return Err(CaseError::Inconsistent(format!(
+                    "{el} connects a bus to itself"
+                )));
+            }
+            if !impedance_ok(t.r, t.x) {
+                return Err(CaseError::NonPositiveImpedance {
+                    element: el,
+                    r: t.r,
+                    x: t.x,
+                });
+            }
+            if let Some(tap) = t.tap {
+                check_range(&el, "tap", tap, tap > 0.5 && tap < 1.5, "0.5 < tap < 1.5")?;
+            }
+        }
+        let mut names = BTreeSet::new();
+        for br in self.branches() {
+            if !names.insert(br.name.clone()) {
+                return Err(CaseError::DuplicateName(br.name));
+            }
+        }
+        for (i, s) in self.shunts.iter().enumerate() {
+            bus_ok(format!("shunt {}", i + 1), s.bus)?;
+        }
+        for (i, l) in self.loads.iter().enumerate() {
+            let el = format!("load {} (bus {})", i + 1, l.bus);
+            bus_ok(el.clone(), l.bus)?;
+            check_range(&el, "p_mw", l.p_mw, true, "finite")?;
+            check_range(&el, "q_mvar", l.q_mvar, true, "finite")?;
+        }
+        for (j, m) in self.machines.iter().enumerate() {
+            let el = format!("machine {} (bus {})", j + 1, m.bus);
+            bus_ok(el.clone(), m.bus)?;
+            pos(&el, "rating_mva", m.rating_mva)?;
+            pos(&el, "h", m.h)?;
+            nonneg(&el, "d", m.d)?;
+            nonneg(&el, "ra", m.ra)?;
+            pos(&el, "xd_p", m.xd_p)?;
+            check_range(&el, "xd", m.xd, m.xd >= m.xd_p, ">= xd_p")?;
+            check_range(&el, "p_mw", m.p_mw, true, "finite")?;
+            match m.model {
+                MachineModel::TwoAxis => {
+                    for (name, v) in [
+                        ("xq", m.xq),
+                        ("xq_p", m.xq_p),
+                        ("td0_p", m.td0_p),
+                        ("tq0_p", m.tq0_p),
+                    ] {
+                        match v {
+                            None => {
+                                return Err(CaseError::Inconsistent(format!(
+                                    "{el}: two_axis model needs `{name}`"
+                                )))
+                            }
+                            Some(v) => pos(&el, name, v)?,
+                        }
+                    }
+                    let (xq, xq_p) = (m.xq.unwrap(), m.xq_p.unwrap());
+                    check_range(&el, "xq", xq, xq >= xq_p, ">= xq_p")?;
+                }
+                MachineModel::Classical => {
+                    if m.exciter.is_some() {
+                        return Err(CaseError::Inconsistent(format!(
+                            "{el}: a classical machine has constant E' and cannot take an exciter"
+                        )));
+                    }
+                }
+            }
+            match &m.governor {
+                Some(Governor::TgovReheat {
+                    r,
+                    t_g,
+                    t_ch,
+                    t_rh,
+                    f_hp,
+                    p_max,
+                    p_min,
+                }) => {
+                    check_range(&el, "governor.r", *r, *r > 0.0 && *r < 1.0, "0 < r < 1")?;
+                    pos(&el, "governor.t_g", *t_g)?;
+                    pos(&el, "governor.t_ch", *t_ch)?;
+                    pos(&el, "governor.t_rh", *t_rh)?;
+                    check_range(
+                        &el,
+                        "governor.f_hp",
+                        *f_hp,
+                        (0.0..=1.0).contains(f_hp),
+                        "0..1",
+                    )?;
+                    check_range(&el, "governor.p_max", *p_max, p_max > p_min, "> p_min")?;
+                }
+                Some(Governor::Hygov {
+                    r,
+                    t_r,
+                    t_2,
+                    t_g,
+                    t_w,
+                    p_max,
+                    p_min,
+                }) => {
+                    check_range(&el, "governor.r", *r, *r > 0.0 && *r < 1.0, "0 < r < 1")?;
+                    nonneg(&el, "governor.t_r", *t_r)?;
+                    pos(&el, "governor.t_2", *t_2)?;
+                    pos(&el, "governor.t_g", *t_g)?;
+                    pos(&el, "governor.t_w", *t_w)?;
+                    check_range(&el, "governor.p_max", *p_max, p_max > p_min, "> p_min")?;
+                }
+                None => {}
+            }
+            match &m.exciter {
+                Some(Exciter::Sexs {
+                    k,
+                    ta_tb,
+                    t_b,
+                    t_e,
+                    e_min,
+                    e_max,
+                }) => {
+                    pos(&el, "exciter.k", *k)?;
+                    nonneg(&el, "exciter.ta_tb", *ta_tb)?;
+                    pos(&el, "exciter.t_b", *t_b)?;
+                    pos(&el, "exciter.t_e", *t_e)?;
+                    check_range(&el, "exciter.e_max", *e_max, e_max > e_min, "> e_min")?;
+                }
+                Some(Exciter::IeeeT1 {
+                    ka,
+                    ta,
+                    ke,
+                    te,
+                    kf,
+                    tf,
+                    se_a,
+                    se_b,
+                    vr_min,
+                    vr_max,
+                }) => {
+                    pos(&el, "exciter.ka", *ka)?;
+                    pos(&el, "exciter.ta", *ta)?;
+                    nonneg(&el, "exciter.ke", *ke)?;
+                    pos(&el, "exciter.te", *te)?;
+                    nonneg(&el, "exciter.kf", *kf)?;
+                    pos(&el, "exciter.tf", *tf)?;
+                    nonneg(&el, "exciter.se_a", *se_a)?;
+                    nonneg(&el, "exciter.se_b", *se_b)?;
+                    check_range(&el, "exciter.vr_max", *vr_max, vr_max > vr_min, "> vr_min")?;
+                }
+                None => {}
+            }
+        }
+        for (k, d) in self.ders.iter().enumerate() {
+            let el = format!("der slot {} (bus {})", k + 1, d.bus);
+            bus_ok(el.clone(), d.bus)?;
+            pos(&el, "rating_mva", d.rating_mva)?;
+            // a grid-following slot's impedance is informational and may be zero
+            let z_ok = impedance_ok(d.r, d.x)
+                || (d.kind == DerKind::GridFollowing && d.r == 0.0 && d.x == 0.0);
+            if !z_ok {
+                return Err(CaseError::NonPositiveImpedance {
+                    element: el,
+                    r: d.r,
+                    x: d.x,
+                });
+            }
+            check_range(
+                &el,
+                "p_mw",
+                d.p_mw,
+                d.p_mw.abs() <= 1.5 * d.rating_mva,
+                "|p| <= 1.5 rating",
+            )?;
+            check_range(
+                &el,
+                "q_mvar",
+                d.q_mvar,
+                d.q_mvar.abs() <= 1.5 * d.rating_mva,
+                "|q| <= 1.5 rating",
+            )?;
+        }
+        // PV and slack buses need a source to hold the voltage.
+        for b in &self.buses {
+            if b.kind != BusKind::Pq {
+                let has_src = self.machines.iter().any(|m| m.bus == b.id)
+                    || self.ders.iter().any(|d| d.bus == b.id);
+                if !has_src {
+                    return Err(CaseError::Inconsistent(format!(
+                        "bus {} is {:?} but has no machine or DER slot",
+                        b.id, b.kind
+                    )));
+                }
+            }
+        }
+        if let Some(p) = &self.pcc {
+            bus_ok("pcc".into(), p.bus)?;
+            pos("pcc", "f_filter_t", p.f_filter_t)?;
+            for &k in &p.slots {
+                if k == 0 || k > self.ders.len() {
+                    return Err(CaseError::UnknownReference {
+                        element: "pcc".into(),
+                        name: format!("slot {k}"),
+                    });
+                }
+            }
+            let brs = self.branches();
+            for pb in &p.branches {
+                bus_ok("pcc branch".into(), pb.at_bus)?;
+                let idx = self.bus_index()[&pb.at_bus];
+                match brs.iter().find(|b| b.name == pb.branch) {
+                    None => {
+                        return Err(CaseError::UnknownReference {
+                            element: "pcc".into(),
+                            name: pb.branch.clone(),
+                        })
+                    }
+                    Some(b) if b.from != idx && b.to != idx => {
+                        return Err(CaseError::Inconsistent(format!(
+                            "pcc branch {} does not touch bus {}",
+                            pb.branch, pb.at_bus
+                        )))
+                    }
+                    _ => {}
+                }
+            }
+        }
+        for (i, e) in self.events.iter().enumerate() {
+            let el = format!("event {}", i + 1);
+            nonneg(&el, "time", e.time())?;
+            match e {
+                Event::LoadStep {
+                    bus,
+                    dp_mw,
+                    dq_mvar,
+                    ..
+                } => {
+                    bus_ok(el.clone(), *bus)?;
+                    check_range(&el, "dp_mw", *dp_mw, true, "finite")?;
+                    check_range(&el, "dq_mvar", *dq_mvar, true, "finite")?;
+                }
+                Event::GeneratorTrip { machine, .. } => {
+                    if *machine == 0 || *machine > self.machines.len() {
+                        return Err(CaseError::UnknownReference {
+                            element: el,
+                            name: format!("machine {machine}"),
+                        });
+                    }
+                }
+                Event::LineTrip { branch, .. } => {
+                    if !self.branches().iter().any(|b| &b.name == branch) {
+                        return Err(CaseError::UnknownReference {
+                            element: el,
+                            name: branch.clone(),
+                        });
+                    }
+                }
+            }
+        }
+        // Connectivity from the slack bus through in-service branches.
+        let idx = self.bus_index();
+        let n = self.buses.len();
+        let mut adj = vec![Vec::new(); n];
+        for br in self.branches().iter().filter(|b| b.in_service) {
+            adj[br.from].push(br.to);
+            adj[br.to].push(br.from);
+        }
+        let mut seen = vec![false; n];
+        let s = idx[&slacks[0]];
+        seen[s] = true;
+        let mut q = VecDeque::from([s]);
+        while let Some(u) = q.pop_front() {
+            for &v in &adj[u] {
+                if !seen[v] {
+                    seen[v] = true;
+                    q.push_back(v);
+                }
+            }
+        }
+        if let Some(i) = seen.iter().position(|&x| !x) {
+            return Err(CaseError::IslandedBus(self.buses[i].id));
+        }
+        Ok(())
+    }
+}
+
+/// Text of a built-in case.
+pub fn builtin_text(name: &str) -> Option<&'static str> {
+    match name {
+        "ieee9" => Some(include_str!("../cases/ieee9.toml")),
+        "ieee9_dvpp" => Some(include_str!("../cases/ieee9_dvpp.toml")),
+        "ieee9_hybrid" => Some(include_str!("../cases/ieee9_hybrid.toml")),
+        _ => None,
+    }
+}

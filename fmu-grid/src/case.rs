@@ -587,40 +587,32 @@ impl Case {
                 )))
             }
         }
-        for (i, l) in self.lines.iter().enumerate() {
-            let el = format!("line {} ({}-{})", i + 1, l.from, l.to);
-            bus_ok(el.clone(), l.from)?;
-            bus_ok(el.clone(), l.to)?;
-            if l.from == l.to {
+        // A branch joins two known, different buses through a positive impedance.
+        let branch = |el: &str, from: u32, to: u32, r: f64, x: f64| -> Result<(), CaseError> {
+            bus_ok(el.to_owned(), from)?;
+            bus_ok(el.to_owned(), to)?;
+            if from == to {
                 return Err(CaseError::Inconsistent(format!(
                     "{el} connects a bus to itself"
                 )));
             }
-            if !impedance_ok(l.r, l.x) {
+            if !impedance_ok(r, x) {
                 return Err(CaseError::NonPositiveImpedance {
-                    element: el,
-                    r: l.r,
-                    x: l.x,
+                    element: el.to_owned(),
+                    r,
+                    x,
                 });
             }
+            Ok(())
+        };
+        for (i, l) in self.lines.iter().enumerate() {
+            let el = format!("line {} ({}-{})", i + 1, l.from, l.to);
+            branch(&el, l.from, l.to, l.r, l.x)?;
             nonneg(&el, "b", l.b)?;
         }
         for (i, t) in self.transformers.iter().enumerate() {
             let el = format!("transformer {} ({}-{})", i + 1, t.from, t.to);
-            bus_ok(el.clone(), t.from)?;
-            bus_ok(el.clone(), t.to)?;
-            if t.from == t.to {
-                return Err(CaseError::Inconsistent(format!(
-                    "{el} connects a bus to itself"
-                )));
-            }
-            if !impedance_ok(t.r, t.x) {
-                return Err(CaseError::NonPositiveImpedance {
-                    element: el,
-                    r: t.r,
-                    x: t.x,
-                });
-            }
+            branch(&el, t.from, t.to, t.r, t.x)?;
             if let Some(tap) = t.tap {
                 check_range(&el, "tap", tap, tap > 0.5 && tap < 1.5, "0.5 < tap < 1.5")?;
             }

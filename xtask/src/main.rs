@@ -206,8 +206,8 @@ fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
     Ok(written)
 }
 
-fn bench() -> Result {
-    bundle(&[])?;
+/// `cargo run` of one of the master's binaries (`cosim`, `bench`) in release mode.
+fn master_binary(name: &str) -> Command {
     let mut c = cargo();
     c.args([
         "run",
@@ -216,9 +216,15 @@ fn bench() -> Result {
         "--package",
         "dvpp-cosim",
         "--bin",
-        "bench",
+        name,
         "--",
     ]);
+    c
+}
+
+fn bench() -> Result {
+    bundle(&[])?;
+    let mut c = master_binary("bench");
     for b in BENCHES {
         let sets: Vec<String> = b.set.iter().map(|(n, v)| format!("{n}={v}")).collect();
         c.arg(format!(
@@ -238,17 +244,7 @@ fn demo() -> Result {
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;
     for fmu in &fmus {
         let stem = fmu.file_stem().unwrap().to_string_lossy().into_owned();
-        run(cargo()
-            .args([
-                "run",
-                "--release",
-                "--quiet",
-                "--package",
-                "dvpp-cosim",
-                "--bin",
-                "cosim",
-                "--",
-            ])
+        run(master_binary("cosim")
             .arg(fmu)
             .arg("--out")
             .arg(results.join(format!("{stem}.csv"))))?;

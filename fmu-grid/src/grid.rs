@@ -488,35 +488,27 @@ impl Grid {
             let vt = v[mr.bus];
             let it = (C64::new(p, q) / vt).conj();
             let o = NS_M * j;
-            let (delta, vd, vq, id, iq, eqp, edp, efd);
-            match m.model {
+            // The machine's rotor axis lies along the voltage behind r_a + j x_q (two-axis) or
+            // behind the transient reactance (classical); Park-transform terminal V and I to it.
+            let x_axis = match m.model {
+                MachineModel::TwoAxis => mr.xq,
+                MachineModel::Classical => mr.xd_p,
+            };
+            let e_axis = vt + C64::new(mr.ra, x_axis) * it;
+            let delta = e_axis.arg();
+            let (vdq, idq) = (vt * rot(delta), it * rot(delta));
+            let (vd, vq, id, iq) = (vdq.re, vdq.im, idq.re, idq.im);
+            let (edp, eqp, efd) = match m.model {
                 MachineModel::TwoAxis => {
-                    let eq_ = vt + C64::new(mr.ra, mr.xq) * it;
-                    delta = eq_.arg();
-                    let vdq = vt * rot(delta);
-                    let idq = it * rot(delta);
-                    vd = vdq.re;
-                    vq = vdq.im;
-                    id = idq.re;
-                    iq = idq.im;
-                    edp = vd + mr.ra * id - mr.xq_p * iq;
-                    eqp = vq + mr.ra * iq + mr.xd_p * id;
-                    efd = eqp + (mr.xd - mr.xd_p) * id;
+                    let eqp = vq + mr.ra * iq + mr.xd_p * id;
+                    (
+                        vd + mr.ra * id - mr.xq_p * iq,
+                        eqp,
+                        eqp + (mr.xd - mr.xd_p) * id,
+                    )
                 }
-                MachineModel::Classical => {
-                    let e = vt + C64::new(mr.ra, mr.xd_p) * it;
-                    delta = e.arg();
-                    let vdq = vt * rot(delta);
-                    let idq = it * rot(delta);
-                    vd = vdq.re;
-                    vq = vdq.im;
-                    id = idq.re;
-                    iq = idq.im;
-                    edp = 0.0;
-                    eqp = e.norm();
-                    efd = eqp;
-                }
-            }
+                MachineModel::Classical => (0.0, e_axis.norm(), e_axis.norm()),
+            };
             let pe = vd * id + vq * iq + mr.ra * (id * id + iq * iq);
             x[o] = delta;
             x[o + 1] = 1.0;

@@ -138,6 +138,24 @@ enum Degenerate {
     NoReactiveCapacity,
 }
 
+/// Warn once per episode: `active` says whether the condition holds now; `warned` remembers
+/// the conditions already reported.
+fn warn_once(
+    warned: &mut Vec<Degenerate>,
+    ctx: &mut Context,
+    what: Degenerate,
+    active: bool,
+    message: impl FnOnce() -> String,
+) {
+    let seen = warned.contains(&what);
+    if active && !seen {
+        warned.push(what);
+        ctx.warn(message());
+    } else if !active && seen {
+        warned.retain(|w| *w != what);
+    }
+}
+
 /// The operator's variables and state.
 #[derive(Clone, Serialize, Deserialize)]
 pub struct Operator {
@@ -181,23 +199,6 @@ impl Operator {
             .map(|(k, _)| k)
     }
 
-    /// Warn once per episode: `active` says whether the condition holds now.
-    fn once(
-        &mut self,
-        ctx: &mut Context,
-        what: Degenerate,
-        active: bool,
-        message: impl FnOnce() -> String,
-    ) {
-        let seen = self.warned.contains(&what);
-        if active && !seen {
-            self.warned.push(what);
-            ctx.warn(message());
-        } else if !active && seen {
-            self.warned.retain(|w| *w != what);
-        }
-    }
-
     /// The gains the current inputs call for.
     fn target(&mut self, s: &Store, ctx: &mut Context) -> Result<Gains, ModelError> {
         let s_base = s[self.s_base];
@@ -205,8 +206,9 @@ impl Operator {
         let mut weights = Vec::with_capacity(lpf.len());
         for &k in &lpf {
             let avail = s[self.ders[k].p_avail];
-            let name = self.config.ders[k].name.clone();
-            self.once(
+            let name = &self.config.ders[k].name;
+            warn_once(
+                &mut self.warned,
                 ctx,
                 Degenerate::NegativeAvailability(k),
                 avail < 0.0,
@@ -220,9 +222,15 @@ impl Operator {
             weights.push(avail.max(0.0) * self.config.ders[k].share);
         }
         let none = weights.iter().all(|&w| w == 0.0);
-        self.once(ctx, Degenerate::NoAvailability, none, || {
-            "all low-pass DERs report zero available power: active dc gains fall back to equal shares".into()
-        });
+        warn_once(
+            &mut self.warned,
+            ctx,
+            Degenerate::NoAvailability,
+            none,
+            || {
+                "all low-pass DERs report zero available power: active dc gains fall back to equal shares".into()
+            },
+        );
         let floored: Vec<bool> = lpf
             .iter()
             .map(|&k| self.config.ders[k].form == Form::GridForming)
@@ -234,16 +242,29 @@ impl Operator {
         for k in 0..self.ders.len() {
             let rating = s[self.ders[k].s_rated] * self.config.ders[k].share;
             let p_mw = s[self.ders[k].p] * s_base;
-            let name = self.config.ders[k].name.clone();
-            self.once(ctx, Degenerate::OverRating(k), p_mw.abs() > rating, || {
-                format!("DER {} '{name}': |p| = {:.2} MW exceeds its rating {rating:.2} MVA: no reactive capacity", k + 1, p_mw.abs())
-            });
+            let name = &self.config.ders[k].name;
+            warn_once(
+                &mut self.warned,
+                ctx,
+                Degenerate::OverRating(k),
+                p_mw.abs() > rating,
+                || {
+                    format!("DER {} '{name}': |p| = {:.2} MW exceeds its rating {rating:.2} MVA: no reactive capacity", k + 1, p_mw.abs())
+                },
+            );
             capacity.push(reactive_capacity(rating, p_mw));
         }
         let none = capacity.iter().all(|&c| c == 0.0);
-        self.once(ctx, Degenerate::NoReactiveCapacity, none, || {
-            "no DER has reactive capacity left: reactive dc gains fall back to equal shares".into()
-        });
+        warn_once(
+            &mut self.warned,
+            ctx,
+            Degenerate::NoReactiveCapacity,
+            none,
+            || {
+                "no DER has reactive capacity left: reactive dc gains fall back to equal shares"
+                    .into()
+            },
+        );
         let q = renormalize_with_floor(&capacity, &vec![false; capacity.len()], 0.0)
             .map_err(|e| ModelError(format!("reactive dc gains: {e}")))?;
         Ok(Gains { p, q })
@@ -274,11 +295,9 @@ impl Operator {
     }
 
     fn write_gains(&self, s: &mut Store, g: &Gains) {
-        let lpf: Vec<usize> = self.low_pass().collect();
-        for (j, &k) in lpf.iter().enumerate() {
-            if let Some(r) = self.ders[k].mu_p {
-                s[r] = g.p[j];
-            }
+        // Only the low-pass units have `mu_p`, in the order of `g.p`.
+        for (r, &mu) in self.ders.iter().filter_map(|d| d.mu_p).zip(&g.p) {
+            s[r] = mu;
         }
         for (k, der) in self.ders.iter().enumerate() {
             s[der.mu_q] = g.q[k];

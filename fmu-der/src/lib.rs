@@ -10,6 +10,11 @@
 //! * Grid-following (`mode` = 2): a PLL on `v_angle` measures `Δf`; the converter injects
 //!   `p_ref = p₀ - T_i^fp Δf` and `q_ref = q₀ - T_i^vq Δv`, limited to the rating circle.
 //!
+//! The set point `p₀` is the dispatch at initialization, curtailed to what the primary source
+//! allows with its reserve: `p₀(t) = min(p_dispatch, deload · P_avail(t) - G_dc)` (a cloud that
+//! cuts a PV plant's availability lowers its set point; the DVPP answers that deficit like a
+//! load step).
+//!
 //! The primary source and dc side: an availability profile `P_avail(t)`, a dc source that follows
 //! its command with the lag `τ_dc` within `[0, P_avail]`, and a dc link (`C_dc`, `G_dc`) whose
 //! voltage `v_dc` a proportional controller (`k_dc`) holds. The control math is `dvpp_control`.
@@ -22,7 +27,7 @@ use dvpp_control::phasor::internal_voltage;
 use dvpp_control::{
     Adpf, GflFpModel, GfmPfModel, Hold, LowPassSpec, LtiSimulator, StateSpace, TDes, VqModel,
 };
-use fmi_export::{Context, Integer, Model, ModelError, Real, Spec, Store, Variables};
+use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Spec, Store, Variables};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -138,6 +143,8 @@ pub struct Der {
     tau_dc: Real,
     c_dc: Real,
     g_dc: Real,
+    storage: Boolean,
+    deload: Real,
     k_dc: Real,
     p_avail0: Real,
     avail_t: Real,
@@ -527,6 +534,14 @@ impl Der {
         let zbase = s_base / s_rated;
         let (r, x) = (s[self.r_f] * zbase, s[self.x_f] * zbase);
         let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
+        if v <= 0.0 {
+            return Err(err(
+                "v",
+                format!(
+                    "= {v}: the operating point at initialization needs a terminal voltage > 0"
+                ),
+            ));
+        }
         let (e0, theta0) = internal_voltage(p, q, v, s[self.v_angle], r, x);
         let p_ac = p * s_base / s_rated;
         dc.set_state(DVector::from_column_slice(&[p_ac, 0.0]), p_ac)
@@ -561,8 +576,19 @@ impl Der {
         s[self.p_avail] = self.available(s, 0.0);
         s[self.v_dc] = 1.0;
         s[self.p_dc] = (p_ac + g_dc) * s_rated / s_base;
+        let limit = self.headroom_limit(s, 0.0);
+        if p > limit + 1e-12 && !rt.warned_dc {
+            ctx.warn(format!(
+                "dispatch p = {p:.4} pu is above deload * P_avail - G_dc = {limit:.4} pu: the set point is curtailed from the first step"
+            ));
+        }
         self.check_limits(s, &mut rt, ctx);
         Ok(rt)
+    }
+
+    /// The highest set point the primary source allows at `t`: `deload · P_avail - G_dc`, on S_base.
+    fn headroom_limit(&self, s: &Store, t: f64) -> f64 {
+        s[self.deload] * self.available(s, t) - s[self.g_dc] * s[self.s_rated] / s[self.s_base]
     }
 
     /// Apparent power against the rating and the dc source against its availability.
@@ -579,7 +605,8 @@ impl Der {
         let cap = s[self.p_avail] * to_rated;
         let x = rt.dc.state();
         let p_dc = x[0] + g_dc;
-        let limited = p_dc.clamp(0.0, cap);
+        let floor = if s[self.storage] { -cap } else { 0.0 };
+        let limited = p_dc.clamp(floor, cap);
         let mut w = x[1];
         if w < -1.0 {
             w = -1.0;
@@ -592,7 +619,7 @@ impl Der {
             if !rt.warned_dc {
                 rt.warned_dc = true;
                 ctx.warn(format!(
-                    "dc source limited: command {:.4} pu outside [0, P_avail = {cap:.4}] pu on S_rated",
+                    "dc source limited: command {:.4} pu outside [{floor:.4}, P_avail = {cap:.4}] pu on S_rated",
                     p_dc
                 ));
             }
@@ -758,6 +785,21 @@ impl Model for Der {
             0.0,
         );
         let k_dc = par(v, "k_dc", 100.0, "pu", "dc-voltage control gain", 0.0);
+        let storage = v.boolean(Spec::parameter(
+            "storage",
+            u.storage,
+            "",
+            "the primary source can absorb power (a battery): dc source within [-P_avail, P_avail] instead of [0, P_avail]",
+        ));
+        let deload = v.real(
+            Spec::parameter(
+                "deload",
+                1.0,
+                "1",
+                "deloading: the set point stays at or below deload * P_avail - G_dc (reserve for participation)",
+            )
+            .range(1e-3, 1.0),
+        );
         let p_avail0 = par(
             v,
             "P_avail0",
@@ -790,9 +832,8 @@ impl Model for Der {
             "pu",
             "measured reactive power injected at the terminal, on S_base",
         ));
-        let vv = v.real(
-            Spec::input("v", 1.0, "pu", "voltage magnitude at the regulated point").min(1e-3),
-        );
+        let vv = v
+            .real(Spec::input("v", 1.0, "pu", "voltage magnitude at the regulated point").min(0.0));
         let v_angle = v.real(Spec::input(
             "v_angle",
             0.0,
@@ -856,6 +897,8 @@ impl Model for Der {
             tau_dc,
             c_dc,
             g_dc,
+            storage,
+            deload,
             k_dc,
             p_avail0,
             avail_t,
@@ -888,7 +931,7 @@ impl Model for Der {
                 v,
                 "p_ref",
                 "pu",
-                "grid-following: active power reference on S_base (grid-forming: p at initialization)",
+                "grid-following: active power reference on S_base; grid-forming: the active set point (dispatch curtailed to P_avail)",
             ),
             q_ref: out(
                 v,
@@ -970,6 +1013,8 @@ impl Der {
             lpf
         };
         let s_max = s[self.s_rated] / s[self.s_base];
+        // The set point: the dispatch, curtailed to what the primary source allows (a cloud lowers it).
+        let p_set = rt.p0.min(self.headroom_limit(s, t));
         match &mut rt.channel {
             Channel::Forming(f) => {
                 match rt.p_kind {
@@ -982,7 +1027,8 @@ impl Der {
                     }
                     _ => {}
                 }
-                let dp = (s[self.p] - rt.p0) * to_dvpp;
+                let dp = (s[self.p] - p_set) * to_dvpp;
+                s[self.p_ref] = p_set;
                 let (df, df_int) = f.pf.step_with_integral(dp, h);
                 s[self.df] = df;
                 s[self.theta] += 2.0 * PI * s[self.f_nom] * df_int;
@@ -1006,7 +1052,7 @@ impl Der {
                 }
                 let dp = g.fp.step(rt.df_held, h) / to_dvpp;
                 let dq = rt.vq.step(dv, h) / to_dvpp;
-                let mut p_ref = rt.p0 + dp;
+                let mut p_ref = p_set + dp;
                 let mut q_ref = rt.q0 + dq;
                 if p_ref.hypot(q_ref) > s_max {
                     p_ref = p_ref.clamp(-s_max, s_max);

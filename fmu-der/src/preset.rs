@@ -50,6 +50,8 @@ pub struct UnitDefaults {
     pub mu_p: f64,
     pub mu_q: f64,
     pub mu_p_lpf: Vec<f64>,
+    /// The primary source can absorb power (a battery): dc source within ±P_avail.
+    pub storage: bool,
     pub adpf_p: AdpfDefaults,
     pub adpf_q: AdpfDefaults,
 }
@@ -68,6 +70,7 @@ impl UnitDefaults {
             mu_p: 1.0,
             mu_q: 1.0,
             mu_p_lpf: Vec::new(),
+            storage: false,
             adpf_p: AdpfDefaults::of(STATIC, 1.0),
             adpf_q: AdpfDefaults::of(STATIC, 1.0),
         };
@@ -107,6 +110,7 @@ impl UnitDefaults {
                 mu_p: 0.0,
                 mu_q: share(2),
                 mu_p_lpf: vec![mu_wind, mu_pv],
+                storage: true,
                 adpf_p: AdpfDefaults {
                     lpf_tau: vec![cs.tau_wind, cs.tau_pv],
                     ..AdpfDefaults::of(COMPLEMENT, 1.0)

@@ -49,6 +49,9 @@ pub struct GridConfig {
     /// Events appended to the case's own (e.g. a load step on a case that has none).
     #[serde(default, rename = "event", skip_serializing_if = "Vec::is_empty")]
     pub events: Vec<Event>,
+    /// Overrides the case's PCC frequency-measurement time constant `[pcc] f_filter_t`, s.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pcc_f_filter_t: Option<f64>,
 }
 
 impl GridConfig {
@@ -93,6 +96,15 @@ impl GridConfig {
             case.events.extend(self.events.iter().cloned());
             case.validate()
                 .map_err(|e| format!("[model] event tables: {e}"))?;
+        }
+        if let Some(t) = self.pcc_f_filter_t {
+            let pcc = case
+                .pcc
+                .as_mut()
+                .ok_or("[model] pcc_f_filter_t: the case has no [pcc] table")?;
+            pcc.f_filter_t = t;
+            case.validate()
+                .map_err(|e| format!("[model] pcc_f_filter_t = {t}: {e}"))?;
         }
         Ok(case)
     }

@@ -32,7 +32,21 @@ impl Status {
 
 type Component = *mut c_void;
 type FmuState = *mut c_void;
-type Logger = unsafe extern "C" fn(*mut c_void, *const c_char, c_int, *const c_char, *const c_char);
+type Logger =
+    unsafe extern "C" fn(*mut c_void, *const c_char, c_int, *const c_char, *const c_char, ...);
+
+extern "C" {
+    /// The logger handed to FMUs (c/logger.c): formats the printf-style message with its
+    /// arguments and passes the text on to [`dvpp_cosim_log_sink`].
+    fn dvpp_cosim_logger(
+        env: *mut c_void,
+        instance: *const c_char,
+        status: c_int,
+        category: *const c_char,
+        message: *const c_char,
+        ...
+    );
+}
 
 #[repr(C)]
 struct CallbackFunctions {
@@ -259,7 +273,7 @@ impl Fmu {
         });
         let sink_ptr = Box::into_raw(sink);
         let callbacks = Box::new(CallbackFunctions {
-            logger: Some(log_callback),
+            logger: Some(dvpp_cosim_logger),
             allocate: Some(alloc_callback),
             free: Some(free_callback),
             step_finished: None,
@@ -325,7 +339,20 @@ struct LogSink {
     echo: bool,
 }
 
-unsafe extern "C" fn log_callback(
+/// Records one message already formatted by `dvpp_cosim_logger` (c/logger.c); never unwinds.
+#[no_mangle]
+unsafe extern "C" fn dvpp_cosim_log_sink(
+    env: *mut c_void,
+    name: *const c_char,
+    status: c_int,
+    category: *const c_char,
+    message: *const c_char,
+) {
+    // A panic (e.g. stderr gone) must not unwind into the FMU's C frames: drop the message.
+    let _ = std::panic::catch_unwind(|| log_sink(env, name, status, category, message));
+}
+
+unsafe fn log_sink(
     env: *mut c_void,
     _name: *const c_char,
     status: c_int,
@@ -342,11 +369,11 @@ unsafe extern "C" fn log_callback(
             CStr::from_ptr(p).to_string_lossy().into_owned()
         }
     };
-    // Messages arrive as printf formats; ours carry no arguments, so `%%` is the only escape.
+    // The C shim already substituted the printf arguments (and turned `%%` into `%`).
     let record = LogRecord {
         status: Status::from_c(status),
         category: text(category),
-        message: text(message).replace("%%", "%"),
+        message: text(message),
     };
     if sink.echo {
         eprintln!(
@@ -392,6 +419,15 @@ impl Instance {
             .records
             .lock()
             .map(|r| r.clone())
+            .unwrap_or_default()
+    }
+
+    /// The messages logged since the last call (they are removed from the record).
+    pub fn take_log(&self) -> Vec<LogRecord> {
+        self.sink
+            .records
+            .lock()
+            .map(|mut r| std::mem::take(&mut *r))
             .unwrap_or_default()
     }
 

@@ -59,6 +59,19 @@ pub fn replace_section(readme: &str, section: &str) -> Result<String, String> {
     Ok(format!("{}{section}{}", &readme[..start], &readme[end..]))
 }
 
+/// `readme` with the text between the markers `begin` and `end` replaced by `body`.
+pub fn replace_between(readme: &str, begin: &str, end: &str, body: &str) -> Result<String, String> {
+    let start = readme
+        .find(begin)
+        .ok_or(format!("README.md has no {begin} marker"))?
+        + begin.len();
+    let stop = readme[start..]
+        .find(end)
+        .ok_or(format!("README.md has no {end} marker"))?
+        + start;
+    Ok(format!("{}\n{body}{}", &readme[..start], &readme[stop..]))
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

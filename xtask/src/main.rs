@@ -2,6 +2,7 @@
 
 mod catalog;
 mod docs;
+mod scenario;
 
 use catalog::{BENCHES, FMUS, VARIANTS};
 
@@ -43,7 +44,13 @@ const USAGE: &str = "usage: cargo xtask <task>
 
 tasks:
   bundle [ID...]  build the FMUs (all, or those named) in release; write dist/default/<id>.fmu
-                  and dist/variants/<id>-<variant>.fmu
+                  and dist/variants/<id>-<variant>.fmu; with no ID also every shipped scenario
+                  (xtask/scenarios/*.toml) as dist/<scenario>/ with <scenario>.ssp
+  bundle --scenario PATH
+                  bundle the scenario file PATH into dist/<its name>/
+  cosim SYSTEM.ssp [--stop T] [--step H] [--algorithm jacobi|gauss-seidel] [--out FILE.csv]
+                  [--plot FILE.svg --signals a.x,b.y]
+                  run an SSP system (or one FMU) in our master
   bench    bundle, then measure ns per fmi2DoStep of each benchmark FMU
   demo     bundle, then simulate every default FMU headless; results in results/
   test     bundle, run the Rust tests, then the Python (fmpy) tests in target/venv
@@ -52,7 +59,16 @@ tasks:
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let result = match args.first().map(String::as_str) {
+        Some("bundle") if args.get(1).map(String::as_str) == Some("--scenario") => {
+            match &args[2..] {
+                [path] => bundle_packages()
+                    .and_then(|_| bundle_scenario(Path::new(path)))
+                    .map(|_| ()),
+                _ => Err("usage: cargo xtask bundle --scenario PATH".into()),
+            }
+        }
         Some("bundle") => bundle(&args[1..]).map(|_| ()),
+        Some("cosim") => run(master_binary("cosim").args(&args[1..])),
         Some("demo") => demo(),
         Some("bench") => bench(),
         Some("test") => test(),
@@ -79,7 +95,7 @@ fn build_release(fmus: &[&catalog::Fmu]) -> Result {
 }
 
 /// Write one `.fmu`: modelDescription.xml from the describe binary, the binary, resources.
-fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result {
+fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result<String> {
     let release = root().join("target").join("release");
     let describe = release.join(format!("{package}-describe"));
     let output = Command::new(&describe)
@@ -119,18 +135,19 @@ fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result {
         )?;
     }
     zip.finish().map_err(|e| e.to_string())?;
-    Ok(())
+    String::from_utf8(output.stdout).map_err(|e| format!("{package}: {e}"))
 }
 
-/// Write a resources directory with `config` and `files`, then the `.fmu` from it.
+/// Write a resources directory with `config` and `files`, then the `.fmu` from it; returns its
+/// modelDescription.xml.
 fn bundle_one(
     package: &str,
     id: &str,
     staging: &str,
     config: &str,
-    files: &[&str],
+    files: &[PathBuf],
     out: &Path,
-) -> Result {
+) -> Result<String> {
     let resources = root()
         .join("target")
         .join("bundle")
@@ -141,17 +158,18 @@ fn bundle_one(
     }
     std::fs::create_dir_all(&resources).map_err(|e| e.to_string())?;
     std::fs::write(resources.join("config.toml"), config).map_err(|e| e.to_string())?;
-    for file in files {
-        let src = root().join(file);
-        let name = src.file_name().ok_or(format!("{file}: not a file"))?;
-        std::fs::copy(&src, resources.join(name)).map_err(|e| format!("{}: {e}", src.display()))?;
+    for src in files {
+        let name = src
+            .file_name()
+            .ok_or(format!("{}: not a file", src.display()))?;
+        std::fs::copy(src, resources.join(name)).map_err(|e| format!("{}: {e}", src.display()))?;
     }
-    write_fmu(package, id, &resources, out)?;
+    let xml = write_fmu(package, id, &resources, out)?;
     println!(
         "bundled {}",
         out.strip_prefix(root()).unwrap_or(out).display()
     );
-    Ok(())
+    Ok(xml)
 }
 
 /// Build and bundle the default FMUs (all, or those whose ids are in `only`) into
@@ -194,16 +212,62 @@ fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
         let out = dist
             .join("variants")
             .join(format!("{}-{}.fmu", v.id, v.name));
+        let files: Vec<PathBuf> = v.files.iter().map(|f| root().join(f)).collect();
         bundle_one(
             fmu.package,
             fmu.id,
             &format!("{}-{}", v.id, v.name),
             v.config,
-            v.files,
+            &files,
             &out,
         )?;
     }
+    if only.is_empty() {
+        for path in shipped_scenarios()? {
+            bundle_scenario(&path)?;
+        }
+    }
     Ok(written)
+}
+
+/// Build every FMU package (a scenario uses all three).
+fn bundle_packages() -> Result {
+    let all: Vec<&catalog::Fmu> = FMUS.iter().collect();
+    build_release(&all)
+}
+
+/// The scenario files the project ships, by name.
+fn shipped_scenarios() -> Result<Vec<PathBuf>> {
+    let dir = root().join("xtask").join("scenarios");
+    let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        .map_err(|e| format!("{}: {e}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+        .collect();
+    files.sort();
+    Ok(files)
+}
+
+/// Bundle one scenario file into `dist/<name>/` (FMUs built already); returns the `.ssp`.
+fn bundle_scenario(path: &Path) -> Result<PathBuf> {
+    let name = scenario::name_of(path)?;
+    if ["default", "variants"].contains(&name.as_str()) {
+        return Err(format!(
+            "{}: a scenario cannot be named '{name}' (dist/{name}/ holds the plain FMUs)",
+            path.display()
+        ));
+    }
+    let out_dir = root().join("dist").join(&name);
+    let mut one = |b: &scenario::Build| -> Result<model_description::ModelDescription> {
+        let xml = bundle_one(b.package, b.id, &b.staging, &b.config, &b.files, &b.out)?;
+        model_description::ModelDescription::from_xml(&xml).map_err(|e| e.to_string())
+    };
+    let ssp = scenario::bundle(path, &out_dir, &mut one)?;
+    println!(
+        "bundled {}",
+        ssp.strip_prefix(root()).unwrap_or(&ssp).display()
+    );
+    Ok(ssp)
 }
 
 /// `cargo run` of one of the master's binaries (`cosim`, `bench`) in release mode.
@@ -238,19 +302,148 @@ fn bench() -> Result {
     run(&mut c)
 }
 
+/// The case study I runs of the demo and their labels.
+const DEMO_RUNS: [(&str, &str); 2] = [("case1_load", "load step"), ("case1_cloud", "cloud")];
+
 fn demo() -> Result {
-    let fmus = bundle(&[])?;
+    use dvpp_cosim::casestudy::{self, Signals};
+    use dvpp_cosim::master::{self, Options};
+    bundle(&[])?;
     let results = root().join("results");
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;
-    for fmu in &fmus {
-        let stem = fmu.file_stem().unwrap().to_string_lossy().into_owned();
-        run(master_binary("cosim")
-            .arg(fmu)
-            .arg("--out")
-            .arg(results.join(format!("{stem}.csv"))))?;
+    let mut signals = Vec::new();
+    for (name, _) in DEMO_RUNS {
+        let ssp = root().join("dist").join(name).join(format!("{name}.ssp"));
+        let started = std::time::Instant::now();
+        let opts = Options {
+            progress: true,
+            ..Options::default()
+        };
+        let outcome = master::run(&ssp, &opts).map_err(|e| format!("{name}: {e}"))?;
+        let csv = results.join(format!("{name}.csv"));
+        outcome
+            .table
+            .write_csv(&csv)
+            .map_err(|e| format!("{}: {e}", csv.display()))?;
+        let t_end = outcome.table.rows.last().map_or(0.0, |r| r[0]);
+        println!(
+            "{name}: {t_end} s simulated in {:.2} s -> {}",
+            started.elapsed().as_secs_f64(),
+            csv.display()
+        );
+        signals.push(Signals::of(&outcome.table).map_err(|e| format!("{name}: {e}"))?);
     }
-    println!("results in {}", results.display());
+    let (load, cloud) = (&signals[0], &signals[1]);
+    let gap = casestudy::max_gap(&cloud.df, &load.df);
+    let figures = root().join("tests").join("figures");
+    std::fs::create_dir_all(&figures).map_err(|e| e.to_string())?;
+    let save = |fig: dvpp_cosim::plot::Figure, file: &str| -> Result {
+        for dir in [&results, &figures] {
+            let path = dir.join(file);
+            fig.save(&path)
+                .map_err(|e| format!("{}: {e}", path.display()))?;
+        }
+        println!("figure tests/figures/{file} (and results/{file})");
+        Ok(())
+    };
+    save(
+        casestudy::overview(
+            "Case study I: 28 MW load increase at bus 2 (grid-forming DVPP replaces SG2)",
+            load,
+            None,
+        ),
+        "case1_load.svg",
+    )?;
+    save(
+        casestudy::overview(
+            "Case study I: a cloud cuts the PV's available power (28 MW set-point drop)",
+            cloud,
+            Some(("Δf_pcc of the load step", load)),
+        ),
+        "case1_cloud.svg",
+    )?;
+    // ADPF Bode magnitudes with the dc gains at the start and at the end of the cloud run.
+    let lpf = low_pass_units("case1_cloud")?;
+    let gains_at = |s: &Signals, i: usize| -> Vec<f64> {
+        s.der
+            .iter()
+            .filter_map(|d| d.mu_p.as_ref().map(|m| m[i.min(m.len() - 1)]))
+            .collect()
+    };
+    let (nominal, after) = (gains_at(cloud, 0), gains_at(cloud, usize::MAX));
+    save(
+        casestudy::adpf_figure(
+            "Case study I: active ADPFs at nominal availability and after the cloud",
+            &lpf,
+            "bess",
+            &[("nominal", &nominal), ("after the cloud", &after)],
+        ),
+        "case1_adpf.svg",
+    )?;
+
+    let mut table = String::from(
+        "| scenario | NRMSE Δf_pcc vs ref.df | NRMSE Δv_pcc vs ref.dv | nadir (desired) | max abs(v_dc − 1) |\n|---|---|---|---|---|\n",
+    );
+    for ((name, _), s) in DEMO_RUNS.iter().zip(&signals) {
+        let m = s.metrics();
+        let dc: Vec<String> = m
+            .v_dc
+            .iter()
+            .map(|(d, x)| format!("{d} {:.2} %", x * 100.0))
+            .collect();
+        table.push_str(&format!(
+            "| `{name}` | {:.2} % | {:.2} % | {:.4} Hz ({:.4} Hz) | {} |\n",
+            m.f_nrmse * 100.0,
+            m.v_nrmse * 100.0,
+            m.f_nadir_hz,
+            m.f_ref_nadir_hz,
+            dc.join(", ")
+        ));
+    }
+    table.push_str(&format!(
+        "\nCloud vs load step: largest gap of Δf_pcc = {:.2} % of the load step's peak deviation.\n",
+        gap * 100.0
+    ));
+    print!("{table}");
+    let path = root().join("README.md");
+    let readme = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let fresh = docs::replace_between(
+        &readme,
+        "<!-- metrics:begin -->",
+        "<!-- metrics:end -->",
+        &table,
+    )?;
+    std::fs::write(&path, fresh).map_err(|e| e.to_string())?;
+    println!(
+        "updated the metrics table in README.md; results in {}",
+        results.display()
+    );
     Ok(())
+}
+
+/// The low-pass units of a bundled scenario (ADPF time constant and order from their FMUs).
+fn low_pass_units(scenario: &str) -> Result<Vec<dvpp_cosim::casestudy::LowPass>> {
+    let dir = root().join("dist").join(scenario);
+    let mut out = Vec::new();
+    let ssp =
+        dvpp_cosim::ssp::read(&dir.join(format!("{scenario}.ssp"))).map_err(|e| e.to_string())?;
+    for c in &ssp.system.components {
+        let fmu = dvpp_cosim::Fmu::load(&ssp.source_path(c)).map_err(|e| e.to_string())?;
+        let start = |n: &str| {
+            fmu.description
+                .variable(n)
+                .and_then(|v| v.start_text())
+                .and_then(|s| s.parse::<f64>().ok())
+        };
+        if start("adpf.p.kind") == Some(1.0) {
+            out.push(dvpp_cosim::casestudy::LowPass {
+                name: c.name.clone(),
+                tau: start("adpf.p.tau").unwrap_or(1.0),
+                order: start("adpf.p.order").unwrap_or(1.0) as i32,
+            });
+        }
+    }
+    Ok(out)
 }
 
 /// The virtual environment with the Python test dependencies, created on first use.

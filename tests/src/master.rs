@@ -1,0 +1,841 @@
+//! The co-simulation master: runs an SSP system of FMUs (fixed-step Jacobi or Gauss-Seidel in
+//! integer nanoseconds) from initialization to the stop time and records its outputs.
+//!
+//! One exchange moves every connection's value from its start connector to its end connector
+//! (with the SSP `LinearTransformation`), in dependency order: a connection leaving a unit with
+//! direct feedthrough (`ModelStructure/Outputs` dependencies during steps, `InitialUnknowns`
+//! during initialization) is read after the connections into that unit were set. A cycle of
+//! such dependencies (an algebraic loop) is reported and broken at the connection of the cycle
+//! that comes first in the SSD: that connection carries the value from before the exchange.
+//! Initialization repeats the exchange until no value changes; a Jacobi step steps every unit
+//! with the inputs of the previous exchange and then exchanges; a Gauss-Seidel step steps the
+//! units one by one in connection order (units in a cycle in SSD order) and exchanges after each.
+
+use crate::fmu::{Fmu, Instance, Status};
+use crate::run::{ticks, Table, NS};
+use crate::ssp::{self, Component, Value};
+use model_description::{direct_feedthrough, BaseType, Causality, ModelDescription};
+use std::collections::{BTreeMap, BTreeSet};
+use std::fmt;
+use std::io::IsTerminal;
+use std::path::Path;
+use std::sync::Arc;
+
+/// How the units are stepped within one communication step.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Algorithm {
+    /// All units step from the same exchanged inputs (parallel in principle).
+    #[default]
+    Jacobi,
+    /// Units step one after the other, each seeing the outputs of those stepped before it.
+    GaussSeidel,
+}
+
+impl std::str::FromStr for Algorithm {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self, Error> {
+        match s {
+            "jacobi" => Ok(Algorithm::Jacobi),
+            "gauss-seidel" => Ok(Algorithm::GaussSeidel),
+            _ => Err(Error(format!(
+                "unknown algorithm '{s}': jacobi or gauss-seidel"
+            ))),
+        }
+    }
+}
+
+/// Run options; `None` takes the system's `DefaultExperiment` and OSP step size.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    pub stop: Option<f64>,
+    pub step: Option<f64>,
+    pub algorithm: Algorithm,
+    /// Show progress on stderr.
+    pub progress: bool,
+}
+
+/// What went wrong, naming the unit, element or file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Error(pub String);
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for Error {}
+
+impl From<ssp::Error> for Error {
+    fn from(e: ssp::Error) -> Self {
+        Error(e.to_string())
+    }
+}
+
+/// The results of a run and the warnings it produced (also printed to stderr as they happen).
+#[derive(Debug, Clone, Default)]
+pub struct Outcome {
+    pub table: Table,
+    pub warnings: Vec<String>,
+}
+
+/// Load the system at `path` (an `.ssp`, a directory or an `.ssd`) and simulate it.
+pub fn simulate(path: &Path, opts: &Options) -> Result<Table, Error> {
+    run(path, opts).map(|o| o.table)
+}
+
+/// Like [`simulate`], also returning the warnings.
+pub fn run(path: &Path, opts: &Options) -> Result<Outcome, Error> {
+    let package = ssp::read(path)?;
+    let mut system = System::load(&package)?;
+    let table = system.simulate(opts)?;
+    Ok(Outcome {
+        table,
+        warnings: system.warnings,
+    })
+}
+
+/// Variable index (1-based, as in `ModelStructure`) to value reference and type.
+struct Var {
+    index: u32,
+    vr: u32,
+    ty: BaseType,
+}
+
+/// One loaded component.
+struct Unit {
+    name: String,
+    inst: Instance,
+    /// Variables read after a step (output connectors and connection starts), recorded.
+    reads: Vec<Var>,
+    values: Vec<f64>,
+    /// `values` is current (no step and no input change since it was read).
+    fresh: bool,
+    /// Inputs to set before the next read or step: Reals (value references, values), others.
+    pending_real: (Vec<u32>, Vec<f64>),
+    pending_other: Vec<(u32, BaseType, f64)>,
+    /// The Real entries of `reads` and a buffer for them.
+    real_vrs: Vec<u32>,
+    buf: Vec<f64>,
+    /// Output index → input indices it depends on, during steps and during initialization.
+    step_deps: BTreeMap<u32, BTreeSet<u32>>,
+    init_deps: BTreeMap<u32, BTreeSet<u32>>,
+    last_message: Option<String>,
+}
+
+/// One connection, resolved.
+struct Link {
+    src: usize,
+    slot: usize,
+    dst: usize,
+    dst_index: u32,
+    dst_vr: u32,
+    ty: BaseType,
+    factor: f64,
+    offset: f64,
+    last: Option<f64>,
+    label: String,
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Phase {
+    Init,
+    Step,
+}
+
+/// A loaded system, ready to simulate once.
+pub struct System {
+    units: Vec<Unit>,
+    links: Vec<Link>,
+    parameters: Vec<(usize, String, Var, Value)>,
+    init_order: Vec<usize>,
+    step_order: Vec<usize>,
+    unit_order: Vec<usize>,
+    start: f64,
+    stop: Option<f64>,
+    step: Option<f64>,
+    name: String,
+    /// Warnings so far (loops, FMU warnings).
+    pub warnings: Vec<String>,
+}
+
+fn variable(md: &ModelDescription, comp: &str, name: &str) -> Result<(Var, Causality), Error> {
+    let index = md
+        .model_variables
+        .variables
+        .iter()
+        .position(|v| v.name == name)
+        .ok_or_else(|| {
+            Error(format!(
+                "component '{comp}': '{name}' is not a variable of {}",
+                md.model_name
+            ))
+        })?;
+    let v = &md.model_variables.variables[index];
+    Ok((
+        Var {
+            index: index as u32 + 1,
+            vr: v.value_reference,
+            ty: v.base_type(),
+        },
+        v.causality(),
+    ))
+}
+
+fn ssp_type(t: ssp::Type) -> BaseType {
+    match t {
+        ssp::Type::Real => BaseType::Real,
+        ssp::Type::Integer => BaseType::Integer,
+        ssp::Type::Boolean => BaseType::Boolean,
+        ssp::Type::String => BaseType::String,
+    }
+}
+
+/// Output index → input indices, from a list of unknowns (`None` dependencies = every input).
+fn dependencies(
+    md: &ModelDescription,
+    unknowns: &[model_description::Unknown],
+) -> Result<BTreeMap<u32, BTreeSet<u32>>, String> {
+    let inputs: BTreeSet<u32> = md
+        .model_variables
+        .variables
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| v.causality() == Causality::Input)
+        .map(|(i, _)| i as u32 + 1)
+        .collect();
+    unknowns
+        .iter()
+        .map(|u| {
+            let deps = match u.dependency_indices() {
+                Some(d) => d?.into_iter().filter(|i| inputs.contains(i)).collect(),
+                None => inputs.clone(),
+            };
+            Ok((u.index, deps))
+        })
+        .collect()
+}
+
+impl Unit {
+    fn load(c: &Component, package: &ssp::Package) -> Result<Unit, Error> {
+        let path = package.source_path(c);
+        let fmu = Fmu::load(&path)
+            .map_err(|e| Error(format!("component '{}' ({}): {e}", c.name, c.source)))?;
+        let fmu = Arc::new(fmu);
+        let md = &fmu.description;
+        let mut reads = Vec::new();
+        for k in &c.connectors {
+            let (var, causality) = variable(md, &c.name, &k.name)?;
+            if var.ty != ssp_type(k.ty) {
+                return Err(Error(format!(
+                    "component '{}': connector '{}' is {:?} in the SSD but {} in {}",
+                    c.name, k.name, k.ty, var.ty, md.model_name
+                )));
+            }
+            let expected = match k.kind {
+                ssp::Kind::Input => Causality::Input,
+                ssp::Kind::Output => Causality::Output,
+                ssp::Kind::Parameter => Causality::Parameter,
+                ssp::Kind::CalculatedParameter => Causality::CalculatedParameter,
+            };
+            if causality != expected {
+                return Err(Error(format!(
+                    "component '{}': connector '{}' is {:?} in the SSD but {causality:?} in {}",
+                    c.name, k.name, k.kind, md.model_name
+                )));
+            }
+            if k.kind == ssp::Kind::Output && var.ty != BaseType::String {
+                reads.push(var);
+            }
+        }
+        let step_deps = dependencies(md, md.model_structure.outputs());
+        // Outputs absent from InitialUnknowns are exact: they depend on nothing.
+        let init_deps = dependencies(md, md.model_structure.initial_unknowns());
+        let (step_deps, init_deps) = match (step_deps, init_deps) {
+            (Ok(s), Ok(i)) => (s, i),
+            (Err(e), _) | (_, Err(e)) => return Err(Error(format!("component '{}': {e}", c.name))),
+        };
+        debug_assert_eq!(
+            step_deps.len(),
+            direct_feedthrough(md).len(),
+            "outputs listed once"
+        );
+        let inst = fmu
+            .instantiate(&c.name)
+            .map_err(|e| Error(format!("component '{}': {e}", c.name)))?;
+        Ok(Unit {
+            name: c.name.clone(),
+            inst,
+            values: vec![0.0; reads.len()],
+            reads,
+            fresh: false,
+            pending_real: (Vec::new(), Vec::new()),
+            pending_other: Vec::new(),
+            real_vrs: Vec::new(),
+            buf: Vec::new(),
+            step_deps,
+            init_deps,
+            last_message: None,
+        })
+    }
+
+    fn slot(&mut self, var: Var) -> usize {
+        match self
+            .reads
+            .iter()
+            .position(|r| r.vr == var.vr && r.ty == var.ty)
+        {
+            Some(i) => i,
+            None => {
+                self.reads.push(var);
+                self.values.push(0.0);
+                self.reads.len() - 1
+            }
+        }
+    }
+
+    fn deps(&self, phase: Phase) -> &BTreeMap<u32, BTreeSet<u32>> {
+        match phase {
+            Phase::Init => &self.init_deps,
+            Phase::Step => &self.step_deps,
+        }
+    }
+
+    /// Whether setting input `index` can change an output of this unit now.
+    fn feeds_through(&self, phase: Phase, index: u32) -> bool {
+        self.deps(phase).values().any(|d| d.contains(&index))
+    }
+
+    /// Report an FMI call's status: `Err` (naming the unit and its last message) above warning.
+    fn check(
+        &mut self,
+        what: impl FnOnce() -> String,
+        s: Status,
+        warnings: &mut Vec<String>,
+    ) -> Result<(), Error> {
+        self.drain_log(warnings);
+        if s <= Status::Warning {
+            return Ok(());
+        }
+        let what = what();
+        let last = self
+            .last_message
+            .as_deref()
+            .map(|m| format!(": {m}"))
+            .unwrap_or_default();
+        let why = if s == Status::Discard {
+            " (the master cannot repeat a rejected step)"
+        } else {
+            ""
+        };
+        Err(Error(format!(
+            "component '{}': {what} returned {s:?}{why}{last}",
+            self.name
+        )))
+    }
+
+    /// Print the unit's new log messages with its name; keep warnings and the last message.
+    fn drain_log(&mut self, warnings: &mut Vec<String>) {
+        for r in self.inst.take_log() {
+            let line = format!(
+                "[{}] {:?} {}: {}",
+                self.name, r.status, r.category, r.message
+            );
+            if r.status >= Status::Warning {
+                eprintln!("{line}");
+                if r.status == Status::Warning {
+                    warnings.push(line);
+                }
+            }
+            self.last_message = Some(r.message);
+        }
+    }
+
+    fn set(&mut self, vr: u32, ty: BaseType, v: f64) -> Status {
+        match ty {
+            BaseType::Real => self.inst.set_real(&[vr], &[v]),
+            BaseType::Integer => self.inst.set_integer(&[vr], &[v.round() as i32]),
+            BaseType::Boolean => self.inst.set_boolean(&[vr], &[v != 0.0]),
+            BaseType::String => Status::Error,
+        }
+    }
+
+    /// Set the pending inputs (the Reals in one call).
+    fn flush(&mut self, warnings: &mut Vec<String>) -> Result<(), Error> {
+        if !self.pending_real.0.is_empty() {
+            let s = self
+                .inst
+                .set_real(&self.pending_real.0, &self.pending_real.1);
+            self.pending_real.0.clear();
+            self.pending_real.1.clear();
+            self.check(|| "fmi2SetReal".into(), s, warnings)?;
+        }
+        for (vr, ty, v) in std::mem::take(&mut self.pending_other) {
+            let s = self.set(vr, ty, v);
+            self.check(|| format!("fmi2Set{ty}"), s, warnings)?;
+        }
+        Ok(())
+    }
+
+    fn push(&mut self, vr: u32, ty: BaseType, v: f64) {
+        if ty == BaseType::Real {
+            self.pending_real.0.push(vr);
+            self.pending_real.1.push(v);
+        } else {
+            self.pending_other.push((vr, ty, v));
+        }
+    }
+
+    /// Read every recorded variable (after setting the pending inputs).
+    fn read(&mut self, warnings: &mut Vec<String>) -> Result<(), Error> {
+        self.flush(warnings)?;
+        if self.real_vrs.len() != self.reads.iter().filter(|r| r.ty == BaseType::Real).count() {
+            self.real_vrs = self
+                .reads
+                .iter()
+                .filter(|r| r.ty == BaseType::Real)
+                .map(|r| r.vr)
+                .collect();
+            self.buf = vec![0.0; self.real_vrs.len()];
+        }
+        let s = self.inst.get_real(&self.real_vrs, &mut self.buf);
+        self.check(|| "fmi2GetReal".into(), s, warnings)?;
+        let mut real = 0;
+        for i in 0..self.reads.len() {
+            let (vr, ty) = (self.reads[i].vr, self.reads[i].ty);
+            let s = match ty {
+                BaseType::Real => {
+                    self.values[i] = self.buf[real];
+                    real += 1;
+                    continue;
+                }
+                BaseType::Integer => {
+                    let mut x = [0];
+                    let s = self.inst.get_integer(&[vr], &mut x);
+                    self.values[i] = x[0] as f64;
+                    s
+                }
+                BaseType::Boolean => {
+                    let mut x = [false];
+                    let s = self.inst.get_boolean(&[vr], &mut x);
+                    self.values[i] = x[0] as i32 as f64;
+                    s
+                }
+                BaseType::String => continue,
+            };
+            self.check(|| format!("fmi2Get{ty}"), s, warnings)?;
+        }
+        self.fresh = true;
+        Ok(())
+    }
+}
+
+/// Order links so that a link leaving unit U after a dependency on one of U's inputs comes
+/// after the link into that input; cycles are broken at their first link in SSD order.
+fn order_links(
+    units: &[Unit],
+    links: &[Link],
+    phase: Phase,
+    warnings: &mut Vec<String>,
+) -> Vec<usize> {
+    let n = links.len();
+    // preds[b] = links a whose end input feeds (through unit b.src) the start of b.
+    let preds: Vec<Vec<usize>> = (0..n)
+        .map(|b| {
+            let lb = &links[b];
+            let out_index = units[lb.src].reads[lb.slot].index;
+            let deps = units[lb.src].deps(phase).get(&out_index);
+            (0..n)
+                .filter(|&a| {
+                    links[a].dst == lb.src && deps.is_some_and(|d| d.contains(&links[a].dst_index))
+                })
+                .collect()
+        })
+        .collect();
+    let mut done = vec![false; n];
+    let mut ignored: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); n];
+    let mut order = Vec::with_capacity(n);
+    while order.len() < n {
+        let ready = (0..n)
+            .find(|&b| !done[b] && preds[b].iter().all(|&a| done[a] || ignored[b].contains(&a)));
+        if let Some(b) = ready {
+            done[b] = true;
+            order.push(b);
+            continue;
+        }
+        // Every remaining link waits on another: walk back from one until a link repeats.
+        let mut path = vec![(0..n).find(|&b| !done[b]).expect("a remaining link")];
+        let cycle = loop {
+            let b = *path.last().expect("non-empty");
+            let a = preds[b]
+                .iter()
+                .copied()
+                .find(|&a| !done[a] && !ignored[b].contains(&a))
+                .expect("a waiting link has a pending predecessor");
+            if let Some(pos) = path.iter().position(|&x| x == a) {
+                break path[pos..].to_vec();
+            }
+            path.push(a);
+        };
+        // Break at the cycle's first link in SSD order: it stops waiting on its predecessor.
+        let first = *cycle.iter().min().expect("non-empty cycle");
+        let pos = cycle.iter().position(|&x| x == first).expect("member");
+        let pred = cycle[(pos + 1) % cycle.len()];
+        ignored[first].insert(pred);
+        let mut names: Vec<&str> = cycle
+            .iter()
+            .rev()
+            .map(|&i| links[i].label.as_str())
+            .collect();
+        names.dedup();
+        let what = match phase {
+            Phase::Init => "initialization",
+            Phase::Step => "steps",
+        };
+        let msg = format!(
+            "algebraic loop (direct feedthrough cycle) during {what}: {}; broken at {} (it carries the value from before each exchange)",
+            names.join(" -> "),
+            links[first].label
+        );
+        eprintln!("cosim: warning: {msg}");
+        warnings.push(msg);
+    }
+    order
+}
+
+/// Gauss-Seidel order of the units: a unit after the units feeding it; cycles in SSD order.
+fn order_units(n: usize, links: &[Link]) -> Vec<usize> {
+    let mut done = vec![false; n];
+    let mut order = Vec::with_capacity(n);
+    while order.len() < n {
+        let ready = (0..n).find(|&u| {
+            !done[u]
+                && links
+                    .iter()
+                    .all(|l| l.dst != u || l.src == u || done[l.src])
+        });
+        // In a cycle the first remaining unit in SSD order goes first.
+        let u = ready.unwrap_or_else(|| (0..n).find(|&u| !done[u]).expect("a remaining unit"));
+        done[u] = true;
+        order.push(u);
+    }
+    order
+}
+
+impl System {
+    /// Load every component's FMU, resolve the connections and check the parameter bindings.
+    pub fn load(package: &ssp::Package) -> Result<System, Error> {
+        let sys = &package.system;
+        let mut units = Vec::with_capacity(sys.components.len());
+        for c in &sys.components {
+            units.push(Unit::load(c, package)?);
+        }
+        let index = |name: &str| {
+            sys.components
+                .iter()
+                .position(|c| c.name == name)
+                .ok_or_else(|| Error(format!("connection names an unknown component '{name}'")))
+        };
+        let mut links = Vec::with_capacity(sys.connections.len());
+        for c in &sys.connections {
+            let (src, dst) = (index(&c.start_element)?, index(&c.end_element)?);
+            let label = format!(
+                "{}.{} -> {}.{}",
+                c.start_element, c.start_connector, c.end_element, c.end_connector
+            );
+            let md_s = &units[src].inst.fmu().description.clone();
+            let md_d = &units[dst].inst.fmu().description.clone();
+            let (from, _) = variable(md_s, &c.start_element, &c.start_connector)?;
+            let (to, causality) = variable(md_d, &c.end_element, &c.end_connector)?;
+            if from.ty != to.ty {
+                return Err(Error(format!(
+                    "connection {label}: {} output to {} input",
+                    from.ty, to.ty
+                )));
+            }
+            if from.ty == BaseType::String {
+                return Err(Error(format!(
+                    "connection {label}: String connections are not supported"
+                )));
+            }
+            if !matches!(causality, Causality::Input | Causality::Parameter) {
+                return Err(Error(format!(
+                    "connection {label}: the end is a {causality:?} variable, not an input"
+                )));
+            }
+            let (factor, offset) = c
+                .transformation
+                .as_ref()
+                .map_or((1.0, 0.0), |t| (t.factor, t.offset));
+            let (dst_index, dst_vr, ty) = (to.index, to.vr, to.ty);
+            let slot = units[src].slot(from);
+            links.push(Link {
+                src,
+                slot,
+                dst,
+                dst_index,
+                dst_vr,
+                ty,
+                factor,
+                offset,
+                last: None,
+                label,
+            });
+        }
+        let mut parameters = Vec::new();
+        for (u, c) in sys.components.iter().enumerate() {
+            for p in &c.parameters {
+                let md = &units[u].inst.fmu().description;
+                let (var, causality) = variable(md, &c.name, &p.name)?;
+                if matches!(
+                    causality,
+                    Causality::Output | Causality::Local | Causality::CalculatedParameter
+                ) && md
+                    .variable(&p.name)
+                    .is_some_and(|v| v.start_text().is_none())
+                {
+                    return Err(Error(format!(
+                        "component '{}': parameter binding '{}': a {causality:?} variable without a start value cannot be set",
+                        c.name, p.name
+                    )));
+                }
+                let ok = matches!(
+                    (&p.value, var.ty),
+                    (Value::Real(_), BaseType::Real)
+                        | (Value::Integer(_), BaseType::Integer)
+                        | (Value::Boolean(_), BaseType::Boolean)
+                        | (Value::String(_), BaseType::String)
+                );
+                if !ok {
+                    return Err(Error(format!(
+                        "component '{}': parameter binding '{}' gives {:?} to a {} variable",
+                        c.name, p.name, p.value, var.ty
+                    )));
+                }
+                parameters.push((u, p.name.clone(), var, p.value.clone()));
+            }
+        }
+        let mut warnings = Vec::new();
+        let init_order = order_links(&units, &links, Phase::Init, &mut warnings);
+        let step_order = order_links(&units, &links, Phase::Step, &mut warnings);
+        let unit_order = order_units(units.len(), &links);
+        Ok(System {
+            units,
+            links,
+            parameters,
+            init_order,
+            step_order,
+            unit_order,
+            start: sys.start_time,
+            stop: sys.stop_time,
+            step: sys.step_size,
+            name: sys.name.clone(),
+            warnings,
+        })
+    }
+
+    /// Move every connection's value in the phase's order; returns how many inputs changed.
+    fn exchange(&mut self, phase: Phase) -> Result<usize, Error> {
+        let order = std::mem::take(match phase {
+            Phase::Init => &mut self.init_order,
+            Phase::Step => &mut self.step_order,
+        });
+        let result = self.exchange_in(phase, &order);
+        *match phase {
+            Phase::Init => &mut self.init_order,
+            Phase::Step => &mut self.step_order,
+        } = order;
+        result
+    }
+
+    fn exchange_in(&mut self, phase: Phase, order: &[usize]) -> Result<usize, Error> {
+        let mut changed = 0;
+        for &i in order {
+            let (src, slot, dst) = (self.links[i].src, self.links[i].slot, self.links[i].dst);
+            if !self.units[src].fresh {
+                self.units[src].read(&mut self.warnings)?;
+            }
+            let link = &mut self.links[i];
+            let v = link.factor * self.units[src].values[slot] + link.offset;
+            if link.last.map(f64::to_bits) == Some(v.to_bits()) {
+                continue;
+            }
+            link.last = Some(v);
+            changed += 1;
+            let (vr, ty, index) = (link.dst_vr, link.ty, link.dst_index);
+            let unit = &mut self.units[dst];
+            unit.push(vr, ty, v);
+            if unit.feeds_through(phase, index) {
+                unit.fresh = false;
+            }
+        }
+        for u in &mut self.units {
+            u.flush(&mut self.warnings)?;
+        }
+        Ok(changed)
+    }
+
+    fn record(&mut self, t: i64, table: &mut Table) -> Result<(), Error> {
+        let mut row = Vec::with_capacity(table.columns.len());
+        row.push(t as f64 / NS as f64);
+        for u in &mut self.units {
+            if !u.fresh {
+                u.read(&mut self.warnings)?;
+            }
+            row.extend_from_slice(&u.values);
+        }
+        table.rows.push(row);
+        Ok(())
+    }
+
+    /// Initialize, step to the stop time and return the recorded outputs.
+    pub fn simulate(&mut self, opts: &Options) -> Result<Table, Error> {
+        let start = ticks(self.start);
+        let stop_s = opts.stop.or(self.stop).ok_or_else(|| {
+            Error(format!(
+                "system '{}': no stop time (give --stop or a DefaultExperiment stopTime)",
+                self.name
+            ))
+        })?;
+        let step_s = opts.step.or(self.step).ok_or_else(|| {
+            Error(format!(
+                "system '{}': no step size (give --step or the OSP FixedStepAlgorithm baseStepSize annotation)",
+                self.name
+            ))
+        })?;
+        let (stop, step) = (ticks(stop_s), ticks(step_s));
+        if !(step_s.is_finite() && step > 0) {
+            return Err(Error(format!(
+                "step size {step_s} s: must be at least 1 ns"
+            )));
+        }
+        if !(stop_s.is_finite() && stop > start) {
+            return Err(Error(format!(
+                "stop time {stop_s} s: must be after the start time {} s",
+                self.start
+            )));
+        }
+        let secs = |t: i64| t as f64 / NS as f64;
+        let mut table = Table {
+            columns: vec!["time".into()],
+            rows: Vec::with_capacity(((stop - start) / step + 2) as usize),
+        };
+        for u in &self.units {
+            let md = &u.inst.fmu().description;
+            for r in &u.reads {
+                let name = &md.model_variables.variables[r.index as usize - 1].name;
+                table.columns.push(format!("{}.{name}", u.name));
+            }
+        }
+
+        // Initialization: experiment, parameters, then exchange until nothing changes.
+        for k in 0..self.units.len() {
+            let u = &mut self.units[k];
+            let s = u.inst.setup_experiment(secs(start), Some(secs(stop)));
+            u.check(|| "fmi2SetupExperiment".into(), s, &mut self.warnings)?;
+        }
+        for (k, name, var, value) in &self.parameters {
+            let u = &mut self.units[*k];
+            let s = match value {
+                Value::Real(v) => u.inst.set_real(&[var.vr], &[*v]),
+                Value::Integer(v) => u.inst.set_integer(&[var.vr], &[*v as i32]),
+                Value::Boolean(v) => u.inst.set_boolean(&[var.vr], &[*v]),
+                Value::String(v) => u.inst.set_string(&[var.vr], &[v.as_str()]),
+            };
+            u.check(
+                || format!("setting parameter '{name}'"),
+                s,
+                &mut self.warnings,
+            )?;
+        }
+        for u in &mut self.units {
+            let s = u.inst.enter_initialization_mode();
+            u.check(
+                || "fmi2EnterInitializationMode".into(),
+                s,
+                &mut self.warnings,
+            )?;
+            u.fresh = false;
+        }
+        const MAX_PASSES: usize = 100;
+        let mut passes = 0;
+        while self.exchange(Phase::Init)? > 0 {
+            passes += 1;
+            if passes == MAX_PASSES {
+                return Err(Error(format!(
+                    "initialization did not settle after {MAX_PASSES} exchanges (an algebraic loop that does not converge?)"
+                )));
+            }
+        }
+        for u in &mut self.units {
+            let s = u.inst.exit_initialization_mode();
+            u.check(
+                || "fmi2ExitInitializationMode".into(),
+                s,
+                &mut self.warnings,
+            )?;
+            u.fresh = false;
+        }
+        self.exchange(Phase::Step)?;
+        self.record(start, &mut table)?;
+
+        let progress = opts.progress;
+        let terminal = std::io::stderr().is_terminal();
+        let started = std::time::Instant::now();
+        let total = (stop - start) as f64;
+        let mut shown = 0;
+        let mut t = start;
+        while t < stop {
+            let h = step.min(stop - t);
+            let what = || format!("fmi2DoStep at t = {} s", secs(t));
+            let what = &what;
+            match opts.algorithm {
+                Algorithm::Jacobi => {
+                    for u in &mut self.units {
+                        let s = u.inst.do_step(secs(t), secs(h));
+                        u.check(what, s, &mut self.warnings)?;
+                        u.fresh = false;
+                    }
+                    self.exchange(Phase::Step)?;
+                }
+                Algorithm::GaussSeidel => {
+                    for k in 0..self.unit_order.len() {
+                        let u = &mut self.units[self.unit_order[k]];
+                        let s = u.inst.do_step(secs(t), secs(h));
+                        u.check(what, s, &mut self.warnings)?;
+                        u.fresh = false;
+                        self.exchange(Phase::Step)?;
+                    }
+                }
+            }
+            t += h;
+            self.record(t, &mut table)?;
+            if progress {
+                let percent = (((t - start) as f64 / total) * 100.0) as i32;
+                let every = if terminal { 1 } else { 25 };
+                if percent >= shown + every {
+                    shown = percent - percent % every;
+                    let line = format!(
+                        "{}: {percent:3}% (t = {:.3} s, {:.1} s wall)",
+                        self.name,
+                        secs(t),
+                        started.elapsed().as_secs_f64()
+                    );
+                    if terminal {
+                        eprint!("\r{line}");
+                    } else {
+                        eprintln!("{line}");
+                    }
+                }
+            }
+        }
+        if progress && terminal {
+            eprintln!();
+        }
+        for u in &mut self.units {
+            let s = u.inst.terminate();
+            u.check(|| "fmi2Terminate".into(), s, &mut self.warnings)?;
+        }
+        Ok(table)
+    }
+}

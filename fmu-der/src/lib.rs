@@ -140,6 +140,7 @@ pub struct Der {
     pll_order: Integer,
     qpi_kp: Real,
     qpi_ki: Real,
+    e_max: Real,
     tau_dc: Real,
     c_dc: Real,
     g_dc: Real,
@@ -752,6 +753,15 @@ impl Model for Der {
             "grid-forming PI matching controller: proportional gain from q error to E",
             0.0,
         );
+        let e_max = v.real(
+            Spec::parameter(
+                "E_max",
+                1.5,
+                "pu",
+                "grid-forming: largest internal voltage magnitude the converter can impose (E in [0, E_max])",
+            )
+            .min(0.0),
+        );
         let qpi_ki = par(
             v,
             "qpi.ki",
@@ -894,6 +904,7 @@ impl Model for Der {
             pll_order,
             qpi_kp,
             qpi_ki,
+            e_max,
             tau_dc,
             c_dc,
             g_dc,
@@ -1033,9 +1044,15 @@ impl Der {
                 s[self.df] = df;
                 s[self.theta] += 2.0 * PI * s[self.f_nom] * df_int;
                 // PI matching controller on E: q tracks the reference held over the step.
+                // E within [0, E_max]; the integrator stops while the limit holds (anti-windup).
                 let e = rt.q_ref - s[self.q];
-                f.e_int += s[self.qpi_ki] * e * h;
-                s[self.e] = rt.e0 + s[self.qpi_kp] * e + f.e_int;
+                let e_max = s[self.e_max];
+                let integral = f.e_int + s[self.qpi_ki] * e * h;
+                let unclamped = rt.e0 + s[self.qpi_kp] * e + integral;
+                s[self.e] = unclamped.clamp(0.0, e_max);
+                if unclamped == s[self.e] {
+                    f.e_int = integral;
+                }
                 rt.q_ref = rt.q0 + rt.vq.step(dv, h) / to_dvpp;
                 s[self.q_ref] = rt.q_ref;
             }

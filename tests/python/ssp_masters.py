@@ -14,11 +14,10 @@ What the masters do (fmpy 0.3.32, libcosimpy 0.0.6 = libcosim 0.11.2):
   Jacobi steps (all doStep, then copy outputs to inputs).  It ignores LinearTransformation,
   records each row with the time before the step but the values after it, and advances time by
   accumulating ``time += step``.  Every input connector declared in the SSD must be connected
-  (otherwise fmpy wires it to a stale connection).  The DER FMU rejects v = 0.0, so plain fmpy
-  cannot run our systems: ``run_fmpy`` therefore (init="outputs") passes the SSD's inline
-  bindings as fmpy's parameter set and, once every FMU is initialized, sets each input connector
-  to its source output's value after initialization (one transfer); init="fmpy" keeps fmpy's
-  zeros.  An SSD with a LinearTransformation is refused.
+  (otherwise fmpy wires it to a stale connection).  ``run_fmpy`` passes the SSD's inline
+  bindings as fmpy's parameter set (our FMUs carry the same values as start values anyway).
+  The zeros of the first step are a real disturbance for our systems (see the README).  An SSD
+  with a LinearTransformation is refused.
 * libcosim reads the .ssp zip (unpacks it; a directory or an .ssd file work too), applies each
   component's first ParameterBinding as initial values (variables of causality parameter or
   input; others only give a warning), applies LinearTransformation (as a function between the
@@ -83,14 +82,12 @@ def _fmpy_parameter_set(system):
     return out
 
 
-def run_fmpy(ssp_path, stop, step, signals, start=0.0, init="outputs"):
-    """Simulate with fmpy.ssp.simulate_ssp; see the module docstring for ``init`` and alignment."""
+def run_fmpy(ssp_path, stop, step, signals, start=0.0):
+    """Simulate with plain fmpy.ssp.simulate_ssp (the SSD's bindings passed as its parameter set)."""
     import fmpy.ssp.simulation as sim
-    from fmpy.ssp.ssd import get_connections, read_ssd
+    from fmpy.ssp.ssd import read_ssd
 
     ssp_path = str(ssp_path)
-    if init not in ("outputs", "fmpy"):
-        raise ValueError(f"init must be 'outputs' or 'fmpy', not {init!r}")
     if _ssd_root(ssp_path).find(f".//{{{SSC}}}LinearTransformation") is not None:
         raise RuntimeError(f"{ssp_path}: fmpy.ssp ignores LinearTransformation; refusing to run it")
     try:
@@ -102,25 +99,7 @@ def run_fmpy(ssp_path, stop, step, signals, start=0.0, init="outputs"):
         if kinds.get(s) != "output":
             raise ValueError(f"{s!r} is not an output connector of {ssp_path}")
     n, t = _grid(start, stop, step)
-
-    original = sim.instantiate_fmu
-    done = []
-
-    def instantiate(component, *args, **kwargs):
-        original(component, *args, **kwargs)
-        done.append(component)
-        system = component.parent
-        if len(done) == len(system.elements):  # all initialized: one output -> input transfer
-            for c in done:
-                for k in c.connectors:
-                    if k.kind == "output":
-                        k.value = sim.get_value(c, k.name)
-            for a, b in get_connections(system):
-                b.value = a.value
-
     try:
-        if init == "outputs":
-            sim.instantiate_fmu = instantiate
         rows = sim.simulate_ssp(
             ssp_path,
             start_time=start,
@@ -130,8 +109,6 @@ def run_fmpy(ssp_path, stop, step, signals, start=0.0, init="outputs"):
         )
     except Exception as e:
         raise RuntimeError(f"fmpy.ssp failed on {ssp_path}: {e}") from e
-    finally:
-        sim.instantiate_fmu = original
     if len(rows) < n:
         raise RuntimeError(f"fmpy.ssp returned {len(rows)} rows, expected {n}")
     # rows[i]: time before step i+1, values after it (fmpy may run one extra step: time += step)

@@ -77,6 +77,9 @@ impl From<ssp::Error> for Error {
 pub struct Outcome {
     pub table: Table,
     pub warnings: Vec<String>,
+    /// Wall time of reading the system and loading its FMUs, and of initializing and stepping.
+    pub load_time: std::time::Duration,
+    pub run_time: std::time::Duration,
 }
 
 /// Load the system at `path` (an `.ssp`, a directory or an `.ssd`) and simulate it.
@@ -86,12 +89,16 @@ pub fn simulate(path: &Path, opts: &Options) -> Result<Table, Error> {
 
 /// Like [`simulate`], also returning the warnings.
 pub fn run(path: &Path, opts: &Options) -> Result<Outcome, Error> {
+    let started = std::time::Instant::now();
     let package = ssp::read(path)?;
     let mut system = System::load(&package)?;
+    let load_time = started.elapsed();
     let table = system.simulate(opts)?;
     Ok(Outcome {
         table,
         warnings: system.warnings,
+        load_time,
+        run_time: started.elapsed() - load_time,
     })
 }
 

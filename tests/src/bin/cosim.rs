@@ -102,6 +102,14 @@ fn main() -> ExitCode {
             if !outcome.warnings.is_empty() {
                 eprintln!("cosim: {} warning(s), see above", outcome.warnings.len());
             }
+            let simulated = outcome.table.rows.last().map_or(0.0, |r| r[0])
+                - outcome.table.rows.first().map_or(0.0, |r| r[0]);
+            let run = outcome.run_time.as_secs_f64();
+            println!(
+                "{stem}: loaded in {:.3} s; initialized and simulated {simulated} s in {run:.3} s ({:.0}x real time)",
+                outcome.load_time.as_secs_f64(),
+                simulated / run
+            );
             (stem, outcome.table)
         };
         let out = args

@@ -9,6 +9,11 @@ pub const S_BASE_MVA: f64 = 100.0;
 /// Nominal frequency of the shipped grid cases, Hz.
 pub const F_NOM_HZ: f64 = 50.0;
 
+/// `max|x|`.
+pub fn peak(x: &[f64]) -> f64 {
+    x.iter().fold(0.0_f64, |m, v| m.max(v.abs()))
+}
+
 /// Normalized RMS error of `y` against the reference `r`: `rms(y - r) / max|r|`.
 pub fn nrmse(y: &[f64], r: &[f64]) -> f64 {
     let n = y.len().min(r.len());
@@ -16,17 +21,17 @@ pub fn nrmse(y: &[f64], r: &[f64]) -> f64 {
         return f64::NAN;
     }
     let sq: f64 = y.iter().zip(r).map(|(a, b)| (a - b) * (a - b)).sum();
-    let peak = r.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-    (sq / n as f64).sqrt() / peak
+    (sq / n as f64).sqrt() / peak(r)
 }
 
-/// Largest `|a - b|` relative to `max|b|`.
-pub fn max_gap(a: &[f64], b: &[f64]) -> f64 {
+/// Largest `|a - b|` from sample `from` on, relative to `max|b|` over the whole of `b`.
+pub fn max_gap(a: &[f64], b: &[f64], from: usize) -> f64 {
     let gap = a
         .iter()
         .zip(b)
+        .skip(from)
         .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
-    gap / b.iter().fold(0.0_f64, |m, x| m.max(x.abs()))
+    gap / peak(b)
 }
 
 fn col(t: &Table, name: &str) -> Result<Vec<f64>, String> {
@@ -99,7 +104,6 @@ impl Signals {
 
     /// The matching metrics of this run.
     pub fn metrics(&self) -> Metrics {
-        let peak = |x: &[f64]| x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
         Metrics {
             f_nrmse: nrmse(&self.df, &self.df_ref),
             v_nrmse: nrmse(&self.dv, &self.dv_ref),

@@ -121,7 +121,7 @@ struct Unit {
     /// Inputs to set before the next read or step: Reals (value references, values), others.
     pending_real: (Vec<u32>, Vec<f64>),
     pending_other: Vec<(u32, BaseType, f64)>,
-    /// The Real entries of `reads` and a buffer for them.
+    /// The Real entries of `reads` (fixed at load) and a buffer for them.
     real_vrs: Vec<u32>,
     buf: Vec<f64>,
     /// Output index → input indices it depends on, during steps and during initialization.
@@ -189,15 +189,6 @@ fn variable(md: &ModelDescription, comp: &str, name: &str) -> Result<(Var, Causa
     ))
 }
 
-fn ssp_type(t: ssp::Type) -> BaseType {
-    match t {
-        ssp::Type::Real => BaseType::Real,
-        ssp::Type::Integer => BaseType::Integer,
-        ssp::Type::Boolean => BaseType::Boolean,
-        ssp::Type::String => BaseType::String,
-    }
-}
-
 /// Output index → input indices, from a list of unknowns (`None` dependencies = every input).
 fn dependencies(
     md: &ModelDescription,
@@ -233,7 +224,7 @@ impl Unit {
         let mut reads = Vec::new();
         for k in &c.connectors {
             let (var, causality) = variable(md, &c.name, &k.name)?;
-            if var.ty != ssp_type(k.ty) {
+            if var.ty != BaseType::from(k.ty) {
                 return Err(Error(format!(
                     "component '{}': connector '{}' is {:?} in the SSD but {} in {}",
                     c.name, k.name, k.ty, var.ty, md.model_name
@@ -279,6 +270,17 @@ impl Unit {
             init_deps,
             last_message: None,
         })
+    }
+
+    /// Fix the Real reads (after every connection has its slot).
+    fn finish_reads(&mut self) {
+        self.real_vrs = self
+            .reads
+            .iter()
+            .filter(|r| r.ty == BaseType::Real)
+            .map(|r| r.vr)
+            .collect();
+        self.buf = vec![0.0; self.real_vrs.len()];
     }
 
     fn slot(&mut self, var: Var) -> usize {
@@ -391,15 +393,6 @@ impl Unit {
     /// Read every recorded variable (after setting the pending inputs).
     fn read(&mut self, warnings: &mut Vec<String>) -> Result<(), Error> {
         self.flush(warnings)?;
-        if self.real_vrs.len() != self.reads.iter().filter(|r| r.ty == BaseType::Real).count() {
-            self.real_vrs = self
-                .reads
-                .iter()
-                .filter(|r| r.ty == BaseType::Real)
-                .map(|r| r.vr)
-                .collect();
-            self.buf = vec![0.0; self.real_vrs.len()];
-        }
         let s = self.inst.get_real(&self.real_vrs, &mut self.buf);
         self.check(|| "fmi2GetReal".into(), s, warnings)?;
         let mut real = 0;
@@ -618,6 +611,9 @@ impl System {
                 }
                 parameters.push((u, p.name.clone(), var, p.value.clone()));
             }
+        }
+        for u in &mut units {
+            u.finish_reads();
         }
         let mut warnings = Vec::new();
         let init_order = order_links(&units, &links, Phase::Init, &mut warnings);

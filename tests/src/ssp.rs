@@ -107,6 +107,30 @@ pub enum Type {
     String,
 }
 
+impl From<model_description::BaseType> for Type {
+    fn from(t: model_description::BaseType) -> Type {
+        use model_description::BaseType as B;
+        match t {
+            B::Real => Type::Real,
+            B::Integer => Type::Integer,
+            B::Boolean => Type::Boolean,
+            B::String => Type::String,
+        }
+    }
+}
+
+impl From<Type> for model_description::BaseType {
+    fn from(t: Type) -> Self {
+        use model_description::BaseType as B;
+        match t {
+            Type::Real => B::Real,
+            Type::Integer => B::Integer,
+            Type::Boolean => B::Boolean,
+            Type::String => B::String,
+        }
+    }
+}
+
 impl Type {
     /// The element's local name (`ssc:Real`, `ssv:Real`, ...).
     pub fn as_str(self) -> &'static str {

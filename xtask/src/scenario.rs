@@ -452,12 +452,6 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
 
 /// A component of the system: every output as a connector, the parameters among `start` bound.
 fn component(name: &str, md: &ModelDescription, start: &Table) -> Result<ssp::Component, String> {
-    let ty = |t: BaseType| match t {
-        BaseType::Real => ssp::Type::Real,
-        BaseType::Integer => ssp::Type::Integer,
-        BaseType::Boolean => ssp::Type::Boolean,
-        BaseType::String => ssp::Type::String,
-    };
     let connectors = md
         .model_variables
         .variables
@@ -466,7 +460,7 @@ fn component(name: &str, md: &ModelDescription, start: &Table) -> Result<ssp::Co
         .map(|v| ssp::Connector {
             name: v.name.clone(),
             kind: ssp::Kind::Output,
-            ty: ty(v.base_type()),
+            ty: v.base_type().into(),
         })
         .collect();
     let mut parameters = Vec::new();

@@ -18,7 +18,7 @@ use crate::case::{
     ParamBase,
 };
 use crate::powerflow::{self, PowerFlow, C64};
-use nalgebra::{DMatrix, DVector, Dyn, LU};
+use nalgebra::{DVector, Dyn, LU};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::fmt;
@@ -270,6 +270,84 @@ pub struct Grid {
     h_max: f64,
     /// Factorized network; a cache, rebuilt on demand (not part of snapshots).
     net: Option<Network>,
+    /// Work buffers of the network solves and the integrator; a cache (not part of snapshots).
+    work: Work,
+}
+
+/// Work buffers reused by every network solve and RK4 stage, so that a step allocates nothing.
+#[derive(Clone, Debug, Default)]
+struct Work {
+    /// Bus current injections, then the solved bus voltages (in place).
+    cur: Vec<C64>,
+    /// Per machine in service: its saliency terms.
+    sal: Vec<Sal>,
+    /// `I - M` (row-major) and a copy the elimination consumes; the right-hand side.
+    i_m: Vec<f64>,
+    lu: Vec<f64>,
+    rhs: Vec<f64>,
+    /// Stator solution of every machine at the last solve.
+    alg: Vec<MachAlg>,
+    /// RK4 stages: start state and voltages, stage states and derivatives, stage voltages.
+    x0: Vec<f64>,
+    v0: Vec<C64>,
+    xs: Vec<f64>,
+    vs: Vec<C64>,
+    k: [Vec<f64>; 4],
+}
+
+/// A machine's saliency terms in a network solve: its q-axis current is the affine function
+/// `kd v_d + kq v_q + off` of its terminal voltage (in its rotor frame `rot`), and `c` is the
+/// saliency injection per unit of that current.
+#[derive(Clone, Copy, Debug)]
+struct Sal {
+    j: usize,
+    bus: usize,
+    rot: C64,
+    kd: f64,
+    kq: f64,
+    off: f64,
+    c: C64,
+}
+
+impl Sal {
+    fn lin(&self, v: C64) -> f64 {
+        let vdq = v * self.rot;
+        self.kd * vdq.re + self.kq * vdq.im
+    }
+}
+
+/// Solve the dense `n`×`n` row-major system `a x = b` in place (`b` becomes `x`) by Gaussian
+/// elimination with partial pivoting; false if `a` is singular.
+fn solve_dense(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
+    for c in 0..n {
+        let p = (c..n)
+            .max_by(|&i, &j| a[i * n + c].abs().total_cmp(&a[j * n + c].abs()))
+            .unwrap_or(c);
+        if a[p * n + c] == 0.0 || !a[p * n + c].is_finite() {
+            return false;
+        }
+        if p != c {
+            for k in 0..n {
+                a.swap(p * n + k, c * n + k);
+            }
+            b.swap(p, c);
+        }
+        for r in c + 1..n {
+            let f = a[r * n + c] / a[c * n + c];
+            for k in c..n {
+                a[r * n + k] -= f * a[c * n + k];
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    for c in (0..n).rev() {
+        let mut x = b[c];
+        for k in c + 1..n {
+            x -= a[c * n + k] * b[k];
+        }
+        b[c] = x / a[c * n + c];
+    }
+    true
 }
 
 /// The factorized network admittance matrix and, per machine in service, the column of its
@@ -681,6 +759,7 @@ impl Grid {
             pf,
             h_max: MAX_INTERNAL_STEP,
             net: None,
+            work: Work::default(),
         };
         // A network solve from the initialized states must reproduce the power flow.
         g.resolve()?;
@@ -951,7 +1030,8 @@ impl Grid {
         MachAlg { id, iq, vd, vq }
     }
 
-    /// Network solution for states `x`, starting from the guess `v0`.
+    /// Network solution for states `x`: `v` holds the starting guess and receives the bus
+    /// voltages, `w.alg` the machines' stator solutions.
     ///
     /// The saliency of the two-axis machines (x'_q ≠ x'_d) makes each machine's current
     /// real-linear but not complex-linear in its terminal voltage. It is solved exactly: with
@@ -960,61 +1040,44 @@ impl Grid {
     /// equations `s_j = i_q,j(V)` form a small real linear system in `s`. Only the voltage-
     /// dependent injections (grid-following slots, constant-power loads) need the fixed-point
     /// iteration on `V`.
-    fn solve_net(&self, x: &[f64], v0: &[C64]) -> Result<(Vec<C64>, Vec<MachAlg>), GridError> {
+    fn solve_net(&self, x: &[f64], v: &mut [C64], w: &mut Work) -> Result<(), GridError> {
         let net = self.net.as_ref().ok_or(GridError::SingularNetwork)?;
         let n = self.n;
-        let nm = self.machines.len();
-        let mut v = v0.to_vec();
         let iterate = self.ders.iter().any(|d| d.kind == DerKind::GridFollowing)
             || self.load_s.iter().any(|s| s.norm() > 0.0);
-        // Per machine in service: q-axis current as an affine function of its bus voltage,
-        // i_q = lin(V) + off, and the saliency injection per unit of i_q.
-        struct Sal {
-            j: usize,
-            bus: usize,
-            rot: C64,
-            kd: f64,
-            kq: f64,
-            off: f64,
-            c: C64,
+        w.sal.clear();
+        for (j, m) in self.machines.iter().enumerate() {
+            if !m.in_service {
+                continue;
+            }
+            let xs = &x[NS_M * j..];
+            let det = m.ra * m.ra + m.xq_p * m.xd_p;
+            let r = rot(xs[0]);
+            w.sal.push(Sal {
+                j,
+                bus: m.bus,
+                rot: r,
+                kd: m.xd_p / det,
+                kq: -m.ra / det,
+                off: (m.ra * xs[2] - m.xd_p * xs[3]) / det,
+                c: C64::new(m.xq_p - m.xd_p, 0.0) / (r * C64::new(m.ra, m.xd_p)),
+            });
         }
-        let sal: Vec<Sal> = self
-            .machines
-            .iter()
-            .enumerate()
-            .filter(|(_, m)| m.in_service)
-            .map(|(j, m)| {
-                let xs = &x[NS_M * j..];
-                let det = m.ra * m.ra + m.xq_p * m.xd_p;
-                let r = rot(xs[0]);
-                Sal {
-                    j,
-                    bus: m.bus,
-                    rot: r,
-                    kd: m.xd_p / det,
-                    kq: -m.ra / det,
-                    off: (m.ra * xs[2] - m.xd_p * xs[3]) / det,
-                    c: C64::new(m.xq_p - m.xd_p, 0.0) / (r * C64::new(m.ra, m.xd_p)),
-                }
-            })
-            .collect();
-        let lin = |s: &Sal, v: C64| {
-            let vdq = v * s.rot;
-            s.kd * vdq.re + s.kq * vdq.im
-        };
         // (I - M) is constant over the iterations: M[a][b] = lin_a(c_b z_b[bus_a]).
-        let ns = sal.len();
-        let mut i_m = DMatrix::<f64>::identity(ns, ns);
-        for (a, sa) in sal.iter().enumerate() {
-            for (b, sb) in sal.iter().enumerate() {
+        let ns = w.sal.len();
+        w.i_m.clear();
+        for (a, sa) in w.sal.iter().enumerate() {
+            for (b, sb) in w.sal.iter().enumerate() {
                 let zb = net.z[sb.j].as_ref().ok_or(GridError::SingularNetwork)?;
-                i_m[(a, b)] -= lin(sa, sb.c * zb[sa.bus]);
+                let one = if a == b { 1.0 } else { 0.0 };
+                w.i_m.push(one - sa.lin(sb.c * zb[sa.bus]));
             }
         }
-        let i_m = i_m.lu();
         let mut residual = f64::INFINITY;
         for _ in 0..NET_MAX_ITER {
-            let mut cur = DVector::from_element(n, C64::new(0.0, 0.0));
+            w.cur.clear();
+            w.cur.resize(n, C64::new(0.0, 0.0));
+            let cur = &mut w.cur;
             for (j, m) in self.machines.iter().enumerate() {
                 if !m.in_service {
                     continue;
@@ -1044,32 +1107,39 @@ impl Grid {
                     }
                 }
             }
-            let mut vn = net.lu.solve(&cur).ok_or(GridError::SingularNetwork)?;
+            let mut vn = nalgebra::DVectorViewMut::from_slice(cur, n);
+            if !net.lu.solve_mut(&mut vn) {
+                return Err(GridError::SingularNetwork);
+            }
             if ns > 0 {
-                let rhs = DVector::from_iterator(ns, sal.iter().map(|s| lin(s, vn[s.bus]) + s.off));
-                let iq = i_m.solve(&rhs).ok_or(GridError::SingularNetwork)?;
-                for (b, sb) in sal.iter().enumerate() {
+                w.rhs.clear();
+                w.rhs.extend(w.sal.iter().map(|s| s.lin(vn[s.bus]) + s.off));
+                w.lu.clone_from(&w.i_m);
+                if !solve_dense(&mut w.lu, &mut w.rhs, ns) {
+                    return Err(GridError::SingularNetwork);
+                }
+                for (sb, iq) in w.sal.iter().zip(&w.rhs) {
                     let zb = net.z[sb.j].as_ref().ok_or(GridError::SingularNetwork)?;
-                    let k = sb.c * iq[b];
+                    let k = sb.c * iq;
                     for i in 0..n {
                         vn[i] += k * zb[i];
                     }
                 }
             }
             residual = (0..n).map(|i| (vn[i] - v[i]).norm()).fold(0.0, f64::max);
-            for i in 0..n {
-                v[i] = vn[i];
-            }
+            v.copy_from_slice(&w.cur);
             if !residual.is_finite() {
                 break;
             }
             if !iterate || residual < NET_TOL {
-                let alg = (0..nm)
-                    .map(|j| {
-                        Self::stator(&self.machines[j], &x[NS_M * j..], v[self.machines[j].bus])
-                    })
-                    .collect();
-                return Ok((v, alg));
+                w.alg.clear();
+                w.alg.extend(
+                    self.machines
+                        .iter()
+                        .enumerate()
+                        .map(|(j, m)| Self::stator(m, &x[NS_M * j..], v[m.bus])),
+                );
+                return Ok(());
             }
         }
         Err(GridError::NetworkNotConverged {
@@ -1081,8 +1151,17 @@ impl Grid {
     /// Re-solve the network at the current state (after input or topology changes).
     pub fn resolve(&mut self) -> Result<(), GridError> {
         self.ensure_lu()?;
-        let (v, _) = self.solve_net(&self.x, &self.v)?;
-        self.v = v;
+        // Solve on a copy: a failed solve leaves the voltages as they were.
+        let mut w = std::mem::take(&mut self.work);
+        let mut v = std::mem::take(&mut w.vs);
+        v.clone_from(&self.v);
+        let solved = self.solve_net(&self.x, &mut v, &mut w);
+        if solved.is_ok() {
+            std::mem::swap(&mut self.v, &mut v);
+        }
+        w.vs = v;
+        self.work = w;
+        solved?;
         self.update_angles();
         Ok(())
     }
@@ -1115,10 +1194,11 @@ impl Grid {
         }
     }
 
-    /// Time derivative of the state vector, and the network solution used.
-    fn deriv(&self, x: &[f64], v0: &[C64]) -> Result<(Vec<f64>, Vec<C64>), GridError> {
-        let (v, alg) = self.solve_net(x, v0)?;
-        let mut dx = vec![0.0; x.len()];
+    /// Time derivative `dx` of the state vector at `x`, given its network solution (bus
+    /// voltages `v`, stator solutions `alg`).
+    fn deriv(&self, x: &[f64], v: &[C64], alg: &[MachAlg], dx: &mut Vec<f64>) {
+        dx.clear();
+        dx.resize(x.len(), 0.0);
         for (j, m) in self.machines.iter().enumerate() {
             if !m.in_service {
                 continue;
@@ -1209,7 +1289,6 @@ impl Grid {
         let nx = x.len();
         let th = v[self.pcc_bus].arg();
         dx[nx - 1] = wrap(th - x[nx - 1]) / self.pcc_tf;
-        Ok((dx, v))
     }
 
     fn clamp_states(&mut self) {
@@ -1238,29 +1317,57 @@ impl Grid {
         self.x[nx - 1] = wrap(self.x[nx - 1]);
     }
 
-    /// One RK4 step of length `h` from the current state.
+    /// One RK4 step of length `h` from the current state, whose network solution is the one
+    /// in `self.v` and the work buffers (left there by the last solve: `resolve` at the start of
+    /// a communication step, an event, or the previous sub-step's final solve).
     fn rk4(&mut self, h: f64) -> Result<(), GridError> {
-        let x0 = self.x.clone();
-        let v0 = self.v.clone();
-        let (k1, v1) = self.deriv(&x0, &v0)?;
-        let xa: Vec<f64> = x0.iter().zip(&k1).map(|(x, k)| x + 0.5 * h * k).collect();
-        let (k2, v2) = self.deriv(&xa, &v1)?;
-        let xb: Vec<f64> = x0.iter().zip(&k2).map(|(x, k)| x + 0.5 * h * k).collect();
-        let (k3, v3) = self.deriv(&xb, &v2)?;
-        let xc: Vec<f64> = x0.iter().zip(&k3).map(|(x, k)| x + h * k).collect();
-        let (k4, _) = self.deriv(&xc, &v3)?;
-        for i in 0..x0.len() {
-            self.x[i] = x0[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        let mut w = std::mem::take(&mut self.work);
+        let result = self.rk4_with(h, &mut w);
+        self.work = w;
+        result
+    }
+
+    fn rk4_with(&mut self, h: f64, w: &mut Work) -> Result<(), GridError> {
+        let mut x0 = std::mem::take(&mut w.x0);
+        let mut v0 = std::mem::take(&mut w.v0);
+        let mut xs = std::mem::take(&mut w.xs);
+        let mut vs = std::mem::take(&mut w.vs);
+        let mut k = std::mem::take(&mut w.k);
+        x0.clone_from(&self.x);
+        v0.clone_from(&self.v);
+        if w.alg.len() != self.machines.len() {
+            self.solve_net(&x0, &mut v0, w)?;
         }
-        if self.x.iter().any(|v| !v.is_finite()) {
-            self.x = x0;
-            return Err(GridError::NonFinite { t: self.t });
-        }
-        self.clamp_states();
-        let (v, _) = self.solve_net(&self.x, &v0)?;
-        self.v = v;
-        self.update_angles();
-        Ok(())
+        self.deriv(&x0, &v0, &w.alg, &mut k[0]);
+        vs.clone_from(&v0);
+        let mut stages = || -> Result<(), GridError> {
+            for (stage, c) in [(1, 0.5), (2, 0.5), (3, 1.0)] {
+                xs.clear();
+                xs.extend(x0.iter().zip(&k[stage - 1]).map(|(x, d)| x + c * h * d));
+                self.solve_net(&xs, &mut vs, w)?;
+                self.deriv(&xs, &vs, &w.alg, &mut k[stage]);
+            }
+            Ok(())
+        };
+        let staged = stages();
+        let result = staged.and_then(|()| {
+            for i in 0..x0.len() {
+                self.x[i] = x0[i] + h / 6.0 * (k[0][i] + 2.0 * k[1][i] + 2.0 * k[2][i] + k[3][i]);
+            }
+            if self.x.iter().any(|v| !v.is_finite()) {
+                self.x.clone_from(&x0);
+                return Err(GridError::NonFinite { t: self.t });
+            }
+            self.clamp_states();
+            // The solution at the new state: the outputs, and the next sub-step's first stage.
+            vs.clone_from(&v0);
+            self.solve_net(&self.x, &mut vs, w)?;
+            std::mem::swap(&mut self.v, &mut vs);
+            self.update_angles();
+            Ok(())
+        });
+        (w.x0, w.v0, w.xs, w.vs, w.k) = (x0, v0, xs, vs, k);
+        result
     }
 
     fn fire_due_events(&mut self) -> Result<(), GridError> {
@@ -1475,7 +1582,11 @@ impl Grid {
 
     /// Largest |derivative| over all states at the current point (0 at an equilibrium).
     pub fn max_derivative(&self) -> Result<f64, GridError> {
-        let (dx, _) = self.deriv(&self.x, &self.v)?;
+        let mut w = Work::default();
+        let mut v = self.v.clone();
+        self.solve_net(&self.x, &mut v, &mut w)?;
+        let mut dx = Vec::new();
+        self.deriv(&self.x, &v, &w.alg, &mut dx);
         Ok(dx.iter().fold(0.0, |a, d| a.max(d.abs())))
     }
 
@@ -1500,5 +1611,4 @@ fn _assert_traits() {
     ok::<Grid>();
     ok::<Outputs>();
     ok::<Case>();
-    let _ = DMatrix::<f64>::zeros(1, 1);
 }

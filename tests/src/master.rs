@@ -142,6 +142,9 @@ struct Link {
     offset: f64,
     last: Option<f64>,
     label: String,
+    /// Whether the destination input feeds through to an output of its unit, per phase
+    /// (initialization, step): setting it makes the unit's outputs stale.
+    feeds: [bool; 2],
 }
 
 #[derive(Clone, Copy, PartialEq)]
@@ -566,6 +569,7 @@ impl System {
                 .map_or((1.0, 0.0), |t| (t.factor, t.offset));
             let (dst_index, dst_vr, ty) = (to.index, to.vr, to.ty);
             let slot = units[src].slot(from);
+            let feeds = [Phase::Init, Phase::Step].map(|p| units[dst].feeds_through(p, dst_index));
             links.push(Link {
                 src,
                 slot,
@@ -577,6 +581,7 @@ impl System {
                 offset,
                 last: None,
                 label,
+                feeds,
             });
         }
         let mut parameters = Vec::new();
@@ -662,10 +667,11 @@ impl System {
             }
             link.last = Some(v);
             changed += 1;
-            let (vr, ty, index) = (link.dst_vr, link.ty, link.dst_index);
+            let (vr, ty) = (link.dst_vr, link.ty);
+            let feeds = link.feeds[phase as usize];
             let unit = &mut self.units[dst];
             unit.push(vr, ty, v);
-            if unit.feeds_through(phase, index) {
+            if feeds {
                 unit.fresh = false;
             }
         }

@@ -1,0 +1,133 @@
+//! Case study I end to end in our master: the bundled `case1_load` and `case1_cloud` systems match
+//! `T_des` (NRMSE of Δf_pcc and Δv_pcc), the cloud leaves Δf_pcc nearly unaffected while active
+//! participation moves from the PV to the wind, and the dc links stay within their limits except
+//! where the PV's primary source runs out of reserve.
+
+mod common;
+
+use common::dist;
+use dvpp_cosim::casestudy::{max_gap, peak, Signals};
+use dvpp_cosim::master::{self, Options};
+use std::path::PathBuf;
+
+fn scenario(name: &str) -> PathBuf {
+    let p = dist()
+        .parent()
+        .expect("dist has a parent")
+        .join(name)
+        .join(format!("{name}.ssp"));
+    assert!(
+        p.is_file(),
+        "{} is missing: run `cargo xtask bundle`",
+        p.display()
+    );
+    p
+}
+
+fn run(name: &str) -> (Signals, dvpp_cosim::run::Table) {
+    let outcome =
+        master::run(&scenario(name), &Options::default()).unwrap_or_else(|e| panic!("{e}"));
+    let signals = Signals::of(&outcome.table).unwrap_or_else(|e| panic!("{name}: {e}"));
+    (signals, outcome.table)
+}
+
+fn column(t: &dvpp_cosim::run::Table, name: &str) -> Vec<f64> {
+    t.column(name).unwrap_or_else(|| panic!("no column {name}"))
+}
+
+#[test]
+fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffected() {
+    let (load, _) = run("case1_load");
+    let (cloud, cloud_t) = run("case1_cloud");
+    let m = load.metrics();
+    println!(
+        "case1_load: NRMSE f {:.2} %, v {:.2} %",
+        m.f_nrmse * 100.0,
+        m.v_nrmse * 100.0
+    );
+    assert!(
+        m.f_nrmse <= 0.05,
+        "frequency NRMSE {:.2} %",
+        m.f_nrmse * 100.0
+    );
+    assert!(
+        m.v_nrmse <= 0.10,
+        "voltage NRMSE {:.2} %",
+        m.v_nrmse * 100.0
+    );
+    // The load step's dc links stay within ±5 %.
+    for (name, dev) in &m.v_dc {
+        assert!(
+            *dev <= 0.05,
+            "case1_load: {name} dc link deviates {:.2} %",
+            dev * 100.0
+        );
+    }
+
+    // The cloud against the load step, at every instant of the run.
+    assert_eq!(load.time.len(), cloud.time.len());
+    let gap = max_gap(&cloud.df, &load.df, 0);
+    println!(
+        "cloud vs load step: largest Δf_pcc gap {:.2} % of the peak",
+        gap * 100.0
+    );
+    assert!(
+        gap <= 0.10,
+        "cloud vs load step: Δf_pcc gap {:.2} %",
+        gap * 100.0
+    );
+    assert!(
+        peak(&load.df) > 1e-3,
+        "the load step shows in the PCC frequency"
+    );
+
+    // Active participation moves from the PV to the wind; the PV's reactive share rises.
+    let (first, last) = (0, cloud.time.len() - 1);
+    let mu = |n: &str| column(&cloud_t, n);
+    let (wind_p, pv_p, pv_q) = (
+        mu("operator.der[1].mu_p"),
+        mu("operator.der[2].mu_p"),
+        mu("operator.der[2].mu_q"),
+    );
+    assert!(
+        wind_p[last] > wind_p[first] + 0.1,
+        "wind μ_p {} -> {}",
+        wind_p[first],
+        wind_p[last]
+    );
+    assert!(
+        pv_p[last] < pv_p[first] - 0.1,
+        "PV μ_p {} -> {}",
+        pv_p[first],
+        pv_p[last]
+    );
+    assert!(
+        pv_q[last] > pv_q[first],
+        "PV μ_q {} -> {}",
+        pv_q[first],
+        pv_q[last]
+    );
+
+    // dc links in the cloud: within ±5 % wherever the primary source has reserve; where a link
+    // leaves that band, its dc source is at its available power (the capacity-proportional
+    // ADPF asks the PV for more than its deloaded reserve, README "What limits the matching").
+    for der in ["wind", "pv", "bess"] {
+        let (v_dc, p_dc, avail) = (
+            column(&cloud_t, &format!("{der}.v_dc")),
+            column(&cloud_t, &format!("{der}.p_dc")),
+            column(&cloud_t, &format!("{der}.P_avail")),
+        );
+        for i in 0..v_dc.len() {
+            if (v_dc[i] - 1.0).abs() > 0.05 {
+                assert!(
+                    (p_dc[i] - avail[i]).abs() < 1e-9,
+                    "case1_cloud: {der} dc link at {:.4} pu at t = {} s with its source below its availability ({} < {})",
+                    v_dc[i],
+                    cloud.time[i],
+                    p_dc[i],
+                    avail[i]
+                );
+            }
+        }
+    }
+}

@@ -26,12 +26,25 @@ pub fn nrmse(y: &[f64], r: &[f64]) -> f64 {
 
 /// Largest `|a - b|` from sample `from` on, relative to `max|b|` over the whole of `b`.
 pub fn max_gap(a: &[f64], b: &[f64], from: usize) -> f64 {
-    let gap = a
-        .iter()
-        .zip(b)
-        .skip(from)
-        .fold(0.0_f64, |m, (x, y)| m.max((x - y).abs()));
-    gap / peak(b)
+    max_gap_at(a, b, from).0
+}
+
+/// [`max_gap`] and the sample where it occurs.
+pub fn max_gap_at(a: &[f64], b: &[f64], from: usize) -> (f64, usize) {
+    let (gap, at) =
+        a.iter()
+            .zip(b)
+            .enumerate()
+            .skip(from)
+            .fold((0.0_f64, from), |(m, at), (i, (x, y))| {
+                let g = (x - y).abs();
+                if g > m {
+                    (g, i)
+                } else {
+                    (m, at)
+                }
+            });
+    (gap / peak(b), at)
 }
 
 fn col(t: &Table, name: &str) -> Result<Vec<f64>, String> {

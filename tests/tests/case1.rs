@@ -82,13 +82,21 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
     );
 
     // Active participation moves from the PV to the wind; the PV's reactive share rises.
+    let der = |n: &str| {
+        cloud
+            .der
+            .iter()
+            .find(|d| d.name == n)
+            .unwrap_or_else(|| panic!("no DER {n}"))
+    };
+    let mu_p = |n: &str| {
+        der(n)
+            .mu_p
+            .clone()
+            .unwrap_or_else(|| panic!("{n}: no mu_p"))
+    };
+    let (wind_p, pv_p, pv_q) = (mu_p("wind"), mu_p("pv"), &der("pv").mu_q);
     let (first, last) = (0, cloud.time.len() - 1);
-    let mu = |n: &str| column(&cloud_t, n);
-    let (wind_p, pv_p, pv_q) = (
-        mu("operator.der[1].mu_p"),
-        mu("operator.der[2].mu_p"),
-        mu("operator.der[2].mu_q"),
-    );
     assert!(
         wind_p[last] > wind_p[first] + 0.1,
         "wind μ_p {} -> {}",
@@ -111,17 +119,18 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
     // dc links in the cloud: within ±5 % wherever the primary source has reserve; where a link
     // leaves that band, its dc source is at its available power (the capacity-proportional
     // ADPF asks the PV for more than its deloaded reserve, README "What limits the matching").
-    for der in ["wind", "pv", "bess"] {
+    for d in &cloud.der {
         let (v_dc, p_dc, avail) = (
-            column(&cloud_t, &format!("{der}.v_dc")),
-            column(&cloud_t, &format!("{der}.p_dc")),
-            column(&cloud_t, &format!("{der}.P_avail")),
+            &d.v_dc,
+            column(&cloud_t, &format!("{}.p_dc", d.name)),
+            column(&cloud_t, &format!("{}.P_avail", d.name)),
         );
         for i in 0..v_dc.len() {
             if (v_dc[i] - 1.0).abs() > 0.05 {
                 assert!(
                     (p_dc[i] - avail[i]).abs() < 1e-9,
-                    "case1_cloud: {der} dc link at {:.4} pu at t = {} s with its source below its availability ({} < {})",
+                    "case1_cloud: {} dc link at {:.4} pu at t = {} s with its source below its availability ({} < {})",
+                    d.name,
                     v_dc[i],
                     cloud.time[i],
                     p_dc[i],

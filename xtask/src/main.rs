@@ -359,7 +359,7 @@ fn demo() -> Result {
         signals.push(Signals::of(&outcome.table).map_err(|e| format!("{name}: {e}"))?);
     }
     let (load, cloud) = (&signals[0], &signals[1]);
-    let gap = casestudy::max_gap(&cloud.df, &load.df, 0);
+    let (gap, worst) = casestudy::max_gap_at(&cloud.df, &load.df, 0);
     let figures = root().join("tests").join("figures");
     std::fs::create_dir_all(&figures).map_err(|e| e.to_string())?;
     let save = |fig: dvpp_cosim::plot::Figure, file: &str| -> Result {
@@ -434,12 +434,7 @@ fn demo() -> Result {
     }
     let settled = load.time.iter().position(|&t| t >= 1.02).unwrap_or(0);
     let gap_after = casestudy::max_gap(&cloud.df, &load.df, settled);
-    let worst = (0..load.df.len().min(cloud.df.len()))
-        .max_by(|&a, &b| {
-            let g = |i: usize| (cloud.df[i] - load.df[i]).abs();
-            g(a).total_cmp(&g(b))
-        })
-        .map_or(0.0, |i| load.time[i]);
+    let worst = load.time.get(worst).copied().unwrap_or(0.0);
     table.push_str(&format!(
         "\nCloud vs load step, largest gap of Δf_pcc relative to the load step's peak deviation: \
          {:.2} % over the whole run (at t = {worst:.4} s), {:.2} % from t = 1.02 s on.\n",

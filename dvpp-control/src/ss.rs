@@ -374,8 +374,18 @@ impl LtiSimulator {
             let (hold, u_prev) = (self.hold, self.u_prev);
             let mut x = std::mem::replace(&mut self.x, DVector::zeros(0));
             let d = self.discretization(h);
-            let x0 = x.clone();
-            x.gemv(1.0, &d.phi, &x0, 0.0);
+            // x ← Φ x, row by row through a stack copy of the old state (the models are small).
+            let n = x.len();
+            let mut x0 = [0.0; SMALL];
+            if n <= SMALL {
+                x0[..n].copy_from_slice(x.as_slice());
+                for i in 0..n {
+                    x[i] = (0..n).map(|j| d.phi[(i, j)] * x0[j]).sum();
+                }
+            } else {
+                let old = x.clone();
+                x.gemv(1.0, &d.phi, &old, 0.0);
+            }
             match hold {
                 Hold::Zero => x.axpy(u, &d.gamma1, 1.0),
                 Hold::First => {
@@ -390,7 +400,7 @@ impl LtiSimulator {
 
     /// First output `C₀ x + D₀ u` without allocating.
     fn first_output(&self, u: f64) -> f64 {
-        self.sys.c.row(0).transpose().dot(&self.x) + self.sys.d[0] * u
+        row0_dot(&self.sys.c, &self.x) + self.sys.d[0] * u
     }
 
     /// Advance by `h` (ignored unless `h > 0`) and return all outputs at the end of the step.
@@ -422,12 +432,24 @@ impl LtiSimulator {
         }
         self.discretization(h);
         let d = self.cache.as_ref().expect("cache filled");
-        let c0 = self.sys.c.row(0).transpose();
-        let integral =
-            c0.dot(&(&d.int_phi * &self.x)) + c0.dot(&d.int_gamma) * u + self.sys.d[0] * u * h;
+        // C₀ ∫Φ x without allocating.
+        let c = &self.sys.c;
+        let n = self.x.len();
+        let c0_int_phi_x: f64 = (0..n)
+            .map(|i| c[(0, i)] * (0..n).map(|j| d.int_phi[(i, j)] * self.x[j]).sum::<f64>())
+            .sum();
+        let integral = c0_int_phi_x + row0_dot(c, &d.int_gamma) * u + self.sys.d[0] * u * h;
         self.advance(u, h);
         (self.first_output(u), integral)
     }
+}
+
+/// State dimension up to which a step works on the stack.
+const SMALL: usize = 16;
+
+/// `C[0, :] · x`.
+fn row0_dot(c: &DMatrix<f64>, x: &DVector<f64>) -> f64 {
+    (0..x.len()).map(|j| c[(0, j)] * x[j]).sum()
 }
 
 #[cfg(test)]

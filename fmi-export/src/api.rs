@@ -331,18 +331,27 @@ pub unsafe fn set<M: Model, V: Copy>(
         let Some((vrs, values)) = slices(vr, nvr, values) else {
             return inst.error(format!("fmi2Set{t}: NULL array"));
         };
-        let converted: Option<Vec<Value>> =
-            (0..vrs.len()).map(|i| convert(*values.add(i))).collect();
-        let Some(converted) = converted else {
-            return inst.error(format!("fmi2Set{t}: a value is NULL or not UTF-8"));
-        };
-        match inst.check_set(t, vrs, &converted) {
+        let mut converted = std::mem::take(&mut inst.set_buffer);
+        converted.clear();
+        for i in 0..vrs.len() {
+            match convert(*values.add(i)) {
+                Some(v) => converted.push(v),
+                None => {
+                    inst.set_buffer = converted;
+                    return inst.error(format!("fmi2Set{t}: a value is NULL or not UTF-8"));
+                }
+            }
+        }
+        let status = match inst.check_set(t, vrs, &converted) {
             Ok(()) => {
-                inst.apply_set(vrs, converted);
+                inst.apply_set(vrs, &mut converted);
                 Status::Ok
             }
             Err(e) => inst.error(format!("fmi2Set{t}: {e}")),
-        }
+        };
+        converted.clear();
+        inst.set_buffer = converted;
+        status
     })
 }
 

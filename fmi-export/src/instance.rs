@@ -111,6 +111,8 @@ pub struct Instance<M: Model> {
     fresh: Core<M>,
     /// Keeps the strings `fmi2GetString` handed out alive until the next call.
     pub(crate) string_buffer: Vec<std::ffi::CString>,
+    /// The values of the `fmi2Set*` call in progress (kept to reuse its allocation).
+    pub(crate) set_buffer: Vec<Value>,
 }
 
 /// Marks memory that holds an `Instance<M>` or a `Snapshot<M>` of this model.
@@ -159,6 +161,7 @@ impl<M: Model> Instance<M> {
             core,
             config,
             string_buffer: Vec::new(),
+            set_buffer: Vec::new(),
         })
     }
 
@@ -290,9 +293,9 @@ impl<M: Model> Instance<M> {
     }
 
     /// Store checked values.
-    pub fn apply_set(&mut self, vrs: &[u32], values: Vec<Value>) {
+    pub fn apply_set(&mut self, vrs: &[u32], values: &mut Vec<Value>) {
         let s = &mut self.core.store;
-        for (&vr, v) in vrs.iter().zip(values) {
+        for (&vr, v) in vrs.iter().zip(values.drain(..)) {
             let i = vr as usize;
             match v {
                 Value::Real(x) => s.reals[i] = x,

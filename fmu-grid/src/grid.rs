@@ -18,7 +18,7 @@ use crate::case::{
     ParamBase,
 };
 use crate::powerflow::{self, PowerFlow, C64};
-use nalgebra::{DVector, Dyn, LU};
+use nalgebra::DVector;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 use std::fmt;
@@ -170,8 +170,6 @@ pub struct Outputs {
     pub loss_p: f64,
     /// gen_p − load_p − loss_p (zero up to the network tolerance).
     pub balance_p: f64,
-    pub bus_v: Vec<f64>,
-    pub bus_angle: Vec<f64>,
 }
 
 /// Changes to a scheduled event (None keeps the case value).
@@ -277,8 +275,9 @@ pub struct Grid {
 /// Work buffers reused by every network solve and RK4 stage, so that a step allocates nothing.
 #[derive(Clone, Debug, Default)]
 struct Work {
-    /// Bus current injections, then the solved bus voltages (in place).
+    /// Bus current injections and the bus voltages they give.
     cur: Vec<C64>,
+    vn: Vec<C64>,
     /// Per machine in service: its saliency terms.
     sal: Vec<Sal>,
     /// `I - M` (row-major) and a copy the elimination consumes; the right-hand side.
@@ -350,12 +349,14 @@ fn solve_dense(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
     true
 }
 
-/// The factorized network admittance matrix and, per machine in service, the column of its
-/// inverse at the machine's bus (how the bus voltages respond to a current injected there).
+/// The factorized network admittance matrix and columns of its inverse `Z` (how the bus
+/// voltages respond to a current injected at a bus): per machine in service at its bus, and per
+/// source bus (a machine, a DER slot or a constant-power load), so that a solve is the sum of
+/// a few columns instead of a full triangular solve.
 #[derive(Clone, Debug)]
 struct Network {
-    lu: LU<C64, Dyn, Dyn>,
     z: Vec<Option<DVector<C64>>>,
+    sources: Vec<(usize, DVector<C64>)>,
 }
 
 /// The serialized form of a [`Grid`]: the case (TOML text) and everything that evolves.
@@ -995,17 +996,34 @@ impl Grid {
         if mn < 1e-12 * mx {
             return Err(GridError::SingularNetwork);
         }
+        let column = |bus: usize| {
+            let mut e = DVector::from_element(self.n, C64::new(0.0, 0.0));
+            e[bus] = C64::new(1.0, 0.0);
+            lu.solve(&e).ok_or(GridError::SingularNetwork)
+        };
         let mut z = Vec::with_capacity(self.machines.len());
         for m in &self.machines {
             z.push(if m.in_service {
-                let mut e = DVector::from_element(self.n, C64::new(0.0, 0.0));
-                e[m.bus] = C64::new(1.0, 0.0);
-                Some(lu.solve(&e).ok_or(GridError::SingularNetwork)?)
+                Some(column(m.bus)?)
             } else {
                 None
             });
         }
-        Ok(Network { lu, z })
+        let mut buses: Vec<usize> = self
+            .machines
+            .iter()
+            .filter(|m| m.in_service)
+            .map(|m| m.bus)
+            .chain(self.ders.iter().map(|d| d.bus))
+            .chain((0..self.n).filter(|&i| self.load_s[i].norm_sqr() > 0.0))
+            .collect();
+        buses.sort_unstable();
+        buses.dedup();
+        let sources = buses
+            .into_iter()
+            .map(|b| Ok((b, column(b)?)))
+            .collect::<Result<_, GridError>>()?;
+        Ok(Network { z, sources })
     }
 
     fn ensure_lu(&mut self) -> Result<(), GridError> {
@@ -1017,9 +1035,10 @@ impl Grid {
 
     /// Stator currents of machine `m` for terminal voltage `vt` and states (solving the two
     /// algebraic stator equations of the two-axis model).
-    fn stator(m: &MachineRt, x: &[f64], vt: C64) -> MachAlg {
-        let (delta, eqp, edp) = (x[0], x[2], x[3]);
-        let vdq = vt * rot(delta);
+    /// `r` is `rot(δ)` of the machine's rotor angle `x[0]`.
+    fn stator(m: &MachineRt, x: &[f64], vt: C64, r: C64) -> MachAlg {
+        let (eqp, edp) = (x[2], x[3]);
+        let vdq = vt * r;
         let (vd, vq) = (vdq.re, vdq.im);
         // vd = edp - ra id + xq' iq ; vq = eqp - ra iq - xd' id
         let (a, b, c, d) = (-m.ra, m.xq_p, -m.xd_p, -m.ra);
@@ -1044,7 +1063,7 @@ impl Grid {
         let net = self.net.as_ref().ok_or(GridError::SingularNetwork)?;
         let n = self.n;
         let iterate = self.ders.iter().any(|d| d.kind == DerKind::GridFollowing)
-            || self.load_s.iter().any(|s| s.norm() > 0.0);
+            || self.load_s.iter().any(|s| s.norm_sqr() > 0.0);
         w.sal.clear();
         for (j, m) in self.machines.iter().enumerate() {
             if !m.in_service {
@@ -1078,12 +1097,10 @@ impl Grid {
             w.cur.clear();
             w.cur.resize(n, C64::new(0.0, 0.0));
             let cur = &mut w.cur;
-            for (j, m) in self.machines.iter().enumerate() {
-                if !m.in_service {
-                    continue;
-                }
-                let xs = &x[NS_M * j..];
-                let e2 = C64::new(xs[3], xs[2]) / rot(xs[0]);
+            for sm in &w.sal {
+                let (m, xs) = (&self.machines[sm.j], &x[NS_M * sm.j..]);
+                // E'' in the network frame (rot is a unit phasor), through the Norton admittance.
+                let e2 = C64::new(xs[3], xs[2]) * sm.rot.conj();
                 cur[m.bus] += e2 / C64::new(m.ra, m.xd_p);
             }
             for d in &self.ders {
@@ -1098,18 +1115,23 @@ impl Grid {
             }
             for i in 0..n {
                 let s = self.load_s[i];
-                if s.norm() > 0.0 {
-                    let vm = v[i].norm();
-                    if vm >= CONST_POWER_V_MIN {
+                if s.norm_sqr() > 0.0 {
+                    if v[i].norm_sqr() >= CONST_POWER_V_MIN * CONST_POWER_V_MIN {
                         cur[i] -= (s / v[i]).conj();
                     } else {
                         cur[i] -= s.conj() / (CONST_POWER_V_MIN * CONST_POWER_V_MIN) * v[i];
                     }
                 }
             }
-            let mut vn = nalgebra::DVectorViewMut::from_slice(cur, n);
-            if !net.lu.solve_mut(&mut vn) {
-                return Err(GridError::SingularNetwork);
+            // V = Z I, with I zero outside the source buses.
+            let vn = &mut w.vn;
+            vn.clear();
+            vn.resize(n, C64::new(0.0, 0.0));
+            for (b, zb) in &net.sources {
+                let i_b = cur[*b];
+                for (v_i, z_ib) in vn.iter_mut().zip(zb.iter()) {
+                    *v_i += z_ib * i_b;
+                }
             }
             if ns > 0 {
                 w.rhs.clear();
@@ -1126,19 +1148,26 @@ impl Grid {
                     }
                 }
             }
-            residual = (0..n).map(|i| (vn[i] - v[i]).norm()).fold(0.0, f64::max);
-            v.copy_from_slice(&w.cur);
+            residual = (0..n)
+                .map(|i| (vn[i] - v[i]).norm_sqr())
+                .fold(0.0, f64::max)
+                .sqrt();
+            v.copy_from_slice(vn);
             if !residual.is_finite() {
                 break;
             }
             if !iterate || residual < NET_TOL {
+                // Stator solutions, with the rotations of the machines in service from `sal`.
                 w.alg.clear();
-                w.alg.extend(
-                    self.machines
-                        .iter()
-                        .enumerate()
-                        .map(|(j, m)| Self::stator(m, &x[NS_M * j..], v[m.bus])),
-                );
+                let mut sal = w.sal.iter().peekable();
+                for (j, m) in self.machines.iter().enumerate() {
+                    let xs = &x[NS_M * j..];
+                    let r = match sal.next_if(|sm| sm.j == j) {
+                        Some(sm) => sm.rot,
+                        None => rot(xs[0]),
+                    };
+                    w.alg.push(Self::stator(m, xs, v[m.bus], r));
+                }
                 return Ok(());
             }
         }
@@ -1515,8 +1544,9 @@ impl Grid {
                 ..Default::default()
             };
             if m.in_service {
-                let a = Self::stator(m, xs, vt);
-                let i = C64::new(a.id, a.iq) / rot(xs[0]);
+                let r = rot(xs[0]);
+                let a = Self::stator(m, xs, vt, r);
+                let i = C64::new(a.id, a.iq) * r.conj();
                 let s = vt * i.conj();
                 o.p = s.re;
                 o.q = s.im;
@@ -1530,7 +1560,6 @@ impl Grid {
             out.sg.push(o);
         }
         let mut load = 0.0;
-        let idx = self.case.bus_index();
         for i in 0..self.n {
             let vm2 = self.v[i].norm_sqr();
             load += self.load_y[i].re * vm2;
@@ -1542,7 +1571,9 @@ impl Grid {
             };
         }
         for s in &self.case.shunts {
-            load += s.g * self.v[idx[&s.bus]].norm_sqr();
+            if let Some(i) = self.case.buses.iter().position(|b| b.id == s.bus) {
+                load += s.g * self.v[i].norm_sqr();
+            }
         }
         let mut loss = 0.0;
         for br in self.branches.iter().filter(|b| b.in_service) {
@@ -1575,8 +1606,6 @@ impl Grid {
         out.load_p = load;
         out.loss_p = loss;
         out.balance_p = gen - load - loss;
-        out.bus_v = self.v.iter().map(|v| v.norm()).collect();
-        out.bus_angle = self.v.iter().map(|v| v.arg()).collect();
         out
     }
 

@@ -4,6 +4,7 @@ use model_description::ModelDescription;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::fmt;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
 /// `fmi2Status` as returned by an FMU.
@@ -269,6 +270,7 @@ impl Fmu {
         let sink = Box::new(LogSink {
             instance: name.to_owned(),
             records: Mutex::new(Vec::new()),
+            held: AtomicUsize::new(0),
             echo: std::env::var_os("DVPP_FMU_LOG").is_some(),
         });
         let sink_ptr = Box::into_raw(sink);
@@ -336,6 +338,9 @@ pub struct LogRecord {
 struct LogSink {
     instance: String,
     records: Mutex<Vec<LogRecord>>,
+    /// How many records are held, so that taking none needs no lock (the master asks after
+    /// every FMI call).
+    held: AtomicUsize,
     echo: bool,
 }
 
@@ -383,6 +388,7 @@ unsafe fn log_sink(
     }
     if let Ok(mut r) = sink.records.lock() {
         r.push(record);
+        sink.held.store(r.len(), Ordering::Release);
     }
 }
 
@@ -424,10 +430,16 @@ impl Instance {
 
     /// The messages logged since the last call (they are removed from the record).
     pub fn take_log(&self) -> Vec<LogRecord> {
+        if self.sink.held.load(Ordering::Acquire) == 0 {
+            return Vec::new();
+        }
         self.sink
             .records
             .lock()
-            .map(|mut r| std::mem::take(&mut *r))
+            .map(|mut r| {
+                self.sink.held.store(0, Ordering::Release);
+                std::mem::take(&mut *r)
+            })
             .unwrap_or_default()
     }
 

@@ -440,8 +440,10 @@ fn write_zip(
         .compression_method(zip::CompressionMethod::Deflated);
     zip.start_file(SSD_FILE, options)?;
     zip.write_all(ssd.as_bytes())?;
+    // FMUs are zip archives already: stored as they are, so a master inflates them only once.
+    let stored = options.compression_method(zip::CompressionMethod::Stored);
     for (name, disk) in fmus {
-        zip.start_file(name.as_str(), options)?;
+        zip.start_file(name.as_str(), stored)?;
         let mut f = std::fs::File::open(disk)?;
         std::io::copy(&mut f, &mut zip)?;
     }

@@ -116,12 +116,15 @@ fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result<St
     let options = zip::write::SimpleFileOptions::default()
         .compression_method(zip::CompressionMethod::Deflated)
         .unix_permissions(0o644);
-    let mut add = |name: &str, bytes: &[u8]| -> Result {
+    let mut add = |name: &str, bytes: &[u8], options| -> Result {
         zip.start_file(name, options).map_err(|e| e.to_string())?;
         zip.write_all(bytes).map_err(|e| e.to_string())
     };
-    add("modelDescription.xml", &output.stdout)?;
-    add(&format!("binaries/linux64/{id}.so"), &binary)?;
+    add("modelDescription.xml", &output.stdout, options)?;
+    // The binary is stored, not deflated: every master unpacks it on every load, and inflating
+    // it was most of the load time of a system.
+    let stored = options.compression_method(zip::CompressionMethod::Stored);
+    add(&format!("binaries/linux64/{id}.so"), &binary, stored)?;
     let mut entries: Vec<_> = std::fs::read_dir(resources)
         .map_err(|e| format!("{}: {e}", resources.display()))?
         .filter_map(|e| e.ok())
@@ -132,6 +135,7 @@ fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result<St
         add(
             &format!("resources/{}", entry.file_name().to_string_lossy()),
             &bytes,
+            options,
         )?;
     }
     zip.finish().map_err(|e| e.to_string())?;
@@ -312,7 +316,7 @@ fn bench() -> Result {
         .arg(root().join("tests").join("python").join("bench_masters.py"))
         .arg(&ssp)
         .arg(&cosim)
-        .args(["--stop", "5", "--step", "1e-4"]))?;
+        .args(["--stop", "20", "--step", "1e-3"]))?;
     let mut c = master_binary("bench");
     for b in BENCHES {
         let sets: Vec<String> = b.set.iter().map(|(n, v)| format!("{n}={v}")).collect();

@@ -5,7 +5,7 @@
 //!   `p`, converted to the DVPP base `S_dvpp`), and the imposed angle
 //!   `θ = θ₀ + 2π f_nom ∫Δf dt` (integrated exactly over each step). The voltage magnitude `E`
 //!   comes from a PI matching controller (option A) making `q` track
-//!   `q_ref = q₀ - T_i^vq Δv`. `E∠θ` starts behind the filter and transformer impedance at the
+//!   `q_ref = q₀ - T_i^vq Δv`. `E∠θ` starts behind the transformer impedance at the
 //!   measured operating point, so a coupled run starts flat.
 //! * Grid-following (`mode` = 2): a PLL on `v_angle` measures `Δf`; the converter injects
 //!   `p_ref = p₀ - T_i^fp Δf` and `q_ref = q₀ - T_i^vq Δv`, limited to the rating circle.
@@ -530,7 +530,7 @@ impl Der {
         let (g_dc, k_dc) = (s[self.g_dc], s[self.k_dc]);
         let mut dc = LtiSimulator::new(dc_model(tau_dc, c_dc, g_dc, k_dc), Hold::Zero);
 
-        // Operating point and the internal voltage behind the filter and transformer.
+        // Operating point and the internal voltage behind the transformer (the slot impedance).
         let (s_base, s_rated) = (s[self.s_base], s[self.s_rated]);
         let zbase = s_base / s_rated;
         let (r, x) = (s[self.r_f] * zbase, s[self.x_f] * zbase);
@@ -697,17 +697,17 @@ impl Model for Der {
         let r_f = par(
             v,
             "R_f",
-            0.02,
+            0.01,
             "pu",
-            "filter + transformer resistance on S_rated",
+            "grid-forming: resistance between the imposed voltage (the regulated filter-capacitor voltage) and the terminal bus, the LV/MV transformer, on S_rated",
             0.0,
         );
         let x_f = par(
             v,
             "X_f",
-            0.21,
+            0.10,
             "pu",
-            "filter + transformer reactance on S_rated",
+            "grid-forming: reactance between the imposed voltage and the terminal bus, the LV/MV transformer, on S_rated",
             1e-6,
         );
         let adpf_p = AdpfParams::declare(v, "p", &u.adpf_p, true);

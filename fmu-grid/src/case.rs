@@ -333,10 +333,11 @@ pub struct DerSlot {
     pub kind: DerKind,
     pub bus: u32,
     pub rating_mva: f64,
-    /// Filter + transformer series resistance, pu on the slot rating.
+    /// Series resistance between the slot's source and its bus (for a grid-forming converter:
+    /// the transformer behind its regulated filter-capacitor voltage), pu on the slot rating.
     #[serde(default)]
     pub r: f64,
-    /// Filter + transformer series reactance, pu on the slot rating.
+    /// Series reactance between the slot's source and its bus, pu on the slot rating.
     pub x: f64,
     /// Active dispatch, MW (at a slack bus the slack power is shared by rating instead).
     #[serde(default)]

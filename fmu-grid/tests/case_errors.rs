@@ -75,7 +75,7 @@ fn negative_impedance() {
 fn negative_slot_impedance() {
     let t = builtin_text("ieee9_dvpp")
         .unwrap()
-        .replacen("\nx = 0.21", "\nx = -0.21", 1);
+        .replacen("\nx = 0.10\n", "\nx = -0.10\n", 1);
     assert!(matches!(err(&t), CaseError::NonPositiveImpedance { .. }));
 }
 

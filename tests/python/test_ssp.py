@@ -13,7 +13,7 @@ from ssp_masters import run_fmpy, run_libcosim
 
 COSIM = os.environ.get("DVPP_COSIM", str(pathlib.Path(__file__).parents[2] / "target" / "release" / "cosim"))
 # The scenario's step (its voltage matching is tuned for it), a shorter horizon (fmpy is slow).
-STOP, STEP, EVENT = 2.0, 1e-4, 1.0
+STOP, STEP, EVENT = 2.0, 1e-3, 1.0
 SIGNALS = ["grid.pcc.f", "grid.pcc.v", "grid.der[1].p", "operator.ref.df", "bess.v_dc"]
 
 
@@ -35,20 +35,23 @@ def ours(path, tmp_path, stop=STOP, step=STEP):
     return data[1:, 0], {name: data[1:, i] for i, name in enumerate(rows[0])}
 
 
-def test_fmpy_validates_and_runs_case1_load_and_agrees_after_the_event(tmp_path):
+@pytest.mark.parametrize("step", [STEP, 1e-4])
+def test_fmpy_validates_and_runs_case1_load_and_agrees_after_the_event(tmp_path, step):
     path = ssp("case1_load")
-    t, theirs = run_fmpy(path, STOP, STEP, SIGNALS)
-    t_ours, mine = ours(path, tmp_path)
+    t, theirs = run_fmpy(path, STOP, step, SIGNALS)
+    t_ours, mine = ours(path, tmp_path, step=step)
     assert np.allclose(t, t_ours, atol=1e-12)
     df_ours, df_fmpy = mine["grid.pcc.f"] - 1, theirs["grid.pcc.f"] - 1
+    assert np.all(np.isfinite(df_fmpy))
     peak = np.abs(df_ours).max()
     after = t >= EVENT
     gap = np.abs(df_fmpy - df_ours)[after].max() / peak
-    # fmpy's zero inputs on the first step are a 1 ms fault at the DVPP slots; it has rung out
-    # by the event (README: "Third-party masters").
-    assert gap < 0.03, f"fmpy vs our master after the event: {gap:.2%} of the peak deviation"
-    assert np.all(np.isfinite(df_fmpy))
-    print(f"fmpy.ssp vs ours, PCC frequency after the event: max gap {gap:.3%} of peak {peak:.3e} pu")
+    print(f"fmpy.ssp vs ours at h = {step}: PCC frequency after the event, max gap {gap:.3%} of peak {peak:.3e} pu")
+    assert np.abs(df_fmpy[after]).max() > 0.5 * peak, "the load step shows in fmpy's run"
+    # fmpy's zero inputs on its first step are a fault at the DVPP slots that lasts one step.
+    # At 0.1 ms it has rung out by the event; at the scenario's 1 ms its swing is still about
+    # 3 % of the peak there (README: "Third-party masters").
+    assert gap < (0.03 if step < STEP else 0.05), f"fmpy vs our master after the event: {gap:.2%} of the peak deviation"
 
 
 def test_libcosim_runs_case1_load_and_agrees_with_our_jacobi(tmp_path):

@@ -267,7 +267,7 @@ fn bad_case_files_make_instantiate_return_null_naming_the_problem() {
         ),
         (
             "negative slot impedance",
-            edit(&dvpp, "\nx = 0.21", "\nx = -0.21"),
+            edit(&dvpp, "\nx = 0.10\n", "\nx = -0.10\n"),
             &["der slot 1 (bus 2)", "non-positive series impedance"],
         ),
         (

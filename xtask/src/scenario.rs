@@ -238,8 +238,18 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
         let mut start = tdes.clone();
         let forming = case.ders[k].kind == fmu_grid::DerKind::GridForming;
         start.insert("mode".into(), Value::Integer(if forming { 1 } else { 2 }));
+        // The slot's rating and impedance, so that E∠θ starts behind the grid's own impedance.
+        let slot = &case.ders[k];
         let o = &pf.der[k];
-        for (n, x) in [("p", o.p), ("q", o.q), ("v", o.v), ("v_angle", o.v_angle)] {
+        for (n, x) in [
+            ("S_rated", slot.rating_mva),
+            ("R_f", slot.r),
+            ("X_f", slot.x),
+            ("p", o.p),
+            ("q", o.q),
+            ("v", o.v),
+            ("v_angle", o.v_angle),
+        ] {
             start.insert(n.into(), real(x));
         }
         start.extend(d.start.clone());

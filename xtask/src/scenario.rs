@@ -236,10 +236,10 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
             model.insert("preset".into(), Value::String(p.clone()));
         }
         let mut start = tdes.clone();
-        let forming = case.ders[k].kind == fmu_grid::DerKind::GridForming;
+        let slot = &case.ders[k];
+        let forming = slot.kind == fmu_grid::DerKind::GridForming;
         start.insert("mode".into(), Value::Integer(if forming { 1 } else { 2 }));
         // The slot's rating and impedance, so that E∠θ starts behind the grid's own impedance.
-        let slot = &case.ders[k];
         let o = &pf.der[k];
         for (n, x) in [
             ("S_rated", slot.rating_mva),

@@ -82,6 +82,12 @@ fn plot(table: &Table, signals: &[String], title: &str, path: &Path) -> Result<(
 }
 
 fn main() -> ExitCode {
+    // Like other command-line tools, end quietly when the reader of stdout goes away
+    // (`cosim ... | head`) instead of panicking in println!.
+    // SAFETY: restores the default disposition of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let result = parse().and_then(|mut args| {
         args.opts.progress = true;
         let is_fmu = args.system.extension().is_some_and(|e| e == "fmu");

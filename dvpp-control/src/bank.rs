@@ -1,6 +1,6 @@
 //! Participation filter bank: time-varying LPF dc gains with `Σ m_i ≡ 1` held exactly.
 //!
-//! Realization (DVPP_MATH.md §4): each low-pass unit `j` owns a chain of `d_j` first-order
+//! Realization (`docs/control.md` §5): each low-pass unit `j` owns a chain of `d_j` first-order
 //! stages `x' = (input − x)/τ_j` driven by the common input `u`; its share is `μ_j(t) x_j`
 //! (last stage). The complement share is `u − Σ_j μ_j(t) x_j` on the *same* states, so the
 //! shares add up to `u` at every instant, whatever the gains do. The gains enter only at the

@@ -1,5 +1,10 @@
 //! The DVPP control design as a library shared by the FMUs and the tests.
 //!
+//! The method is that of Häberle, Tayyebi, He, Prieto-Araujo and Dörfler, "Grid-Forming and
+//! Spatially Distributed Control Design of Dynamic Virtual Power Plants", arXiv:2202.02939
+//! ("the paper" in this crate; `docs/references.md`); the equations as implemented are in
+//! `docs/control.md`.
+//!
 //! Grid-forming and hybrid dynamic virtual power plant (DVPP) control: `T_des`, adaptive
 //! dynamic participation factors (ADPFs), participation/aggregation checks, the local
 //! reference models each DER realizes, with exact sampled-data simulation for FMI

@@ -7,7 +7,7 @@ use crate::local::{GflFpModel, GfmPfModel, VqModel, MU_MIN_GFM};
 use crate::tdes::TDes;
 use serde::{Deserialize, Serialize};
 
-/// Case study I parameters (DVPP_MATH.md §7). Unit order everywhere: wind, PV, BESS.
+/// Case study I parameters (`docs/control.md` §9). Unit order everywhere: wind, PV, BESS.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct CaseStudyI {
     /// `T_pf = 1/(5.55 s + 33.33)`, `T_qv = 0.01`, `τ_q = 0.01 s`.

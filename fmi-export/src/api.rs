@@ -1,10 +1,13 @@
 //! The bodies of the FMI 2.0 C functions, generic over the model: pointer checks, state masks,
 //! status escalation into the Error/Fatal states, and panic containment.
+//!
+//! Each `unsafe` function here decodes the C arguments and runs a safe body inside [`guarded`];
+//! [`crate::harness`] runs the same safe bodies inside the same [`guarded`] without pointers.
 
 use crate::describe::Config;
 use crate::ffi::*;
-use crate::instance::{model_tag, Call, Instance, Phase, Snapshot};
-use crate::log::Logger;
+use crate::instance::{model_tag, Call, Core, Instance, Phase, Snapshot};
+use crate::log::{LogSink, Logger};
 use crate::model::{Model, Value};
 use crate::Status;
 use model_description::BaseType;
@@ -37,6 +40,17 @@ unsafe fn with_instance<M: Model>(
     if inst.tag != model_tag::<M>() {
         return Status::Error;
     }
+    guarded(inst, call, f)
+}
+
+/// Run `f` on `inst` if `call` is legal in its state: the state mask, the escalation of
+/// `fmi2Error`/`fmi2Fatal` into the Error/Fatal states, and panic containment (logged, `fmi2Fatal`)
+/// that every function taking an instance goes through.
+pub fn guarded<M: Model>(
+    inst: &mut Instance<M>,
+    call: Call,
+    f: impl FnOnce(&mut Instance<M>) -> Status,
+) -> Status {
     let phase = inst.core.phase;
     if !call.allowed_in(phase) {
         let status = inst.error(format!(
@@ -133,19 +147,46 @@ pub unsafe fn instantiate<M: Model>(
     _visible: fmi2Boolean,
     logging_on: fmi2Boolean,
 ) -> fmi2Component {
+    let Some(functions) = functions.as_ref() else {
+        return std::ptr::null_mut();
+    };
+    if functions.logger.is_none() {
+        return std::ptr::null_mut();
+    }
+    let sink = LogSink::Callback {
+        callback: functions.logger,
+        environment: functions.component_environment,
+    };
+    let instance = instantiate_from::<M>(
+        c_str(instance_name).unwrap_or(""),
+        fmu_type,
+        c_str(guid),
+        c_str(resource_location),
+        sink,
+        logging_on != 0,
+    );
+    match instance {
+        Some(inst) => Box::into_raw(inst) as fmi2Component,
+        None => std::ptr::null_mut(),
+    }
+}
+
+/// The body of `fmi2Instantiate` once its strings are decoded (`None`: NULL or not UTF-8): checks
+/// the arguments, reads `resources/config.toml` from the resource location and builds the
+/// instance; `None` (with a log line to `sink`) on any problem, panics included.
+pub fn instantiate_from<M: Model>(
+    name: &str,
+    fmu_type: fmi2Type,
+    guid: Option<&str>,
+    resource_location: Option<&str>,
+    sink: LogSink,
+    logging_on: bool,
+) -> Option<Box<Instance<M>>> {
     let result = catch_unwind(AssertUnwindSafe(|| {
-        let functions = functions.as_ref()?;
-        let name = c_str(instance_name).unwrap_or("");
-        let logger = Logger::new(
-            functions.logger,
-            functions.component_environment,
-            name,
-            logging_on != 0,
-        );
+        let logger = Logger::with_sink(sink.clone(), name, logging_on);
         let fail = |m: String| {
             logger.log(Status::Error, &format!("fmi2Instantiate: {m}"));
         };
-        functions.logger?;
         if name.is_empty() {
             fail("instanceName must be a non-empty string".into());
             return None;
@@ -157,11 +198,11 @@ pub unsafe fn instantiate<M: Model>(
             ));
             return None;
         }
-        let Some(guid) = c_str(guid) else {
+        let Some(guid) = guid else {
             fail("fmuGUID is missing".into());
             return None;
         };
-        let resources = match c_str(resource_location).map(resource_path) {
+        let resources = match resource_location.map(resource_path) {
             None => {
                 fail("fmuResourceLocation is missing; this FMU reads resources/config.toml".into());
                 return None;
@@ -179,22 +220,34 @@ pub unsafe fn instantiate<M: Model>(
                 return None;
             }
         };
-        match Instance::<M>::new(name, guid, Some(resources), config, logger) {
-            Ok(inst) => Some(Box::into_raw(Box::new(inst)) as fmi2Component),
+        instantiate_config(name, guid, Some(resources), config, logger)
+    }));
+    result.ok().flatten()
+}
+
+/// The last part of `fmi2Instantiate`: the instance for a configuration already read; `None`
+/// (with a log line through a logger to the same sink, all categories on) when it cannot be
+/// built, e.g. on a GUID mismatch.
+pub fn instantiate_config<M: Model>(
+    name: &str,
+    guid: &str,
+    resources: Option<PathBuf>,
+    config: Config<M::Config>,
+    logger: Logger,
+) -> Option<Box<Instance<M>>> {
+    let sink = logger.sink().clone();
+    let result = catch_unwind(AssertUnwindSafe(|| {
+        match Instance::<M>::new(name, guid, resources, config, logger) {
+            Ok(inst) => Some(Box::new(inst)),
             Err(e) => {
                 // The logger moved into the failed constructor; report through a fresh one.
-                Logger::new(
-                    functions.logger,
-                    functions.component_environment,
-                    name,
-                    true,
-                )
-                .log(Status::Error, &format!("fmi2Instantiate: {e}"));
+                Logger::with_sink(sink.clone(), name, true)
+                    .log(Status::Error, &format!("fmi2Instantiate: {e}"));
                 None
             }
         }
     }));
-    result.ok().flatten().unwrap_or(std::ptr::null_mut())
+    result.ok().flatten()
 }
 
 /// `fmi2FreeInstance`.
@@ -232,11 +285,16 @@ pub unsafe fn set_debug_logging<M: Model>(
         let Some(names) = names else {
             return inst.error("fmi2SetDebugLogging: a category name is NULL or not UTF-8");
         };
-        match inst.logger.set_debug_logging(on != 0, &names) {
-            Ok(()) => Status::Ok,
-            Err(e) => inst.error(format!("fmi2SetDebugLogging: {e}")),
-        }
+        debug_logging(inst, on != 0, &names)
     })
+}
+
+/// The body of `fmi2SetDebugLogging` once its category names are decoded.
+pub fn debug_logging<M: Model>(inst: &mut Instance<M>, on: bool, categories: &[String]) -> Status {
+    match inst.logger.set_debug_logging(on, categories) {
+        Ok(()) => Status::Ok,
+        Err(e) => inst.error(format!("fmi2SetDebugLogging: {e}")),
+    }
 }
 
 /// `fmi2SetupExperiment`.
@@ -261,13 +319,21 @@ pub unsafe fn setup_experiment<M: Model>(
 /// # Safety
 /// FMI 2.0 pointer rules.
 pub unsafe fn transition<M: Model>(c: fmi2Component, call: Call) -> Status {
-    with_instance::<M>(c, call, |inst| match call {
+    with_instance::<M>(c, call, |inst| apply_transition(inst, call))
+}
+
+/// The body of the four state transitions.
+///
+/// # Panics
+/// When `call` is not one of them.
+pub fn apply_transition<M: Model>(inst: &mut Instance<M>, call: Call) -> Status {
+    match call {
         Call::EnterInitializationMode => inst.enter_initialization_mode(),
         Call::ExitInitializationMode => inst.exit_initialization_mode(),
         Call::Terminate => inst.terminate(),
         Call::Reset => inst.reset(),
         _ => unreachable!("not a transition"),
-    })
+    }
 }
 
 unsafe fn slices<'a, V>(
@@ -300,19 +366,45 @@ pub unsafe fn get<M: Model, V>(
         let Some((vrs, _)) = slices(vr, nvr, out as *const V) else {
             return inst.error(format!("fmi2Get{t}: NULL array"));
         };
-        if let Err(e) = inst.check_refs(t, vrs) {
-            return inst.error(format!("fmi2Get{t}: {e}"));
-        }
-        let status = inst.before_get();
-        if status >= Status::Error {
-            return status;
-        }
-        inst.string_buffer.clear();
-        for (i, &r) in vrs.iter().enumerate() {
-            out.add(i).write(read(inst, r));
-        }
-        status
+        get_values(inst, t, vrs, |inst, i, r| out.add(i).write(read(inst, r)))
     })
+}
+
+/// The body of `fmi2Get{t}`: `write(inst, i, vr)` delivers value `vr` at position `i`; nothing
+/// is delivered unless every reference exists and the outputs are current.
+pub fn get_values<M: Model>(
+    inst: &mut Instance<M>,
+    t: BaseType,
+    vrs: &[u32],
+    mut write: impl FnMut(&mut Instance<M>, usize, u32),
+) -> Status {
+    if let Err(e) = inst.check_refs(t, vrs) {
+        return inst.error(format!("fmi2Get{t}: {e}"));
+    }
+    let status = inst.before_get();
+    if status >= Status::Error {
+        return status;
+    }
+    inst.string_buffer.clear();
+    for (i, &r) in vrs.iter().enumerate() {
+        write(inst, i, r);
+    }
+    status
+}
+
+/// The value `fmi2GetReal` reads.
+pub fn read_real<M: Model>(inst: &mut Instance<M>, vr: u32) -> f64 {
+    inst.core.store.reals[vr as usize]
+}
+
+/// The value `fmi2GetInteger` reads.
+pub fn read_integer<M: Model>(inst: &mut Instance<M>, vr: u32) -> fmi2Integer {
+    inst.core.store.integers[vr as usize]
+}
+
+/// The value `fmi2GetBoolean` reads.
+pub fn read_boolean<M: Model>(inst: &mut Instance<M>, vr: u32) -> fmi2Boolean {
+    inst.core.store.booleans[vr as usize] as fmi2Boolean
 }
 
 /// `fmi2Set{Real,Integer,Boolean,String}`: `convert` reads value `i`; all-or-nothing.
@@ -331,33 +423,49 @@ pub unsafe fn set<M: Model, V: Copy>(
         let Some((vrs, values)) = slices(vr, nvr, values) else {
             return inst.error(format!("fmi2Set{t}: NULL array"));
         };
-        let mut converted = std::mem::take(&mut inst.set_buffer);
-        converted.clear();
-        for i in 0..vrs.len() {
-            match convert(*values.add(i)) {
-                Some(v) => converted.push(v),
-                None => {
-                    inst.set_buffer = converted;
-                    return inst.error(format!("fmi2Set{t}: a value is NULL or not UTF-8"));
-                }
+        set_values(inst, t, vrs, |i| convert(*values.add(i)))
+    })
+}
+
+/// The body of `fmi2Set{t}`: `value(i)` is the value for `vrs[i]` (`None`: NULL or not UTF-8);
+/// all-or-nothing.
+pub fn set_values<M: Model>(
+    inst: &mut Instance<M>,
+    t: BaseType,
+    vrs: &[u32],
+    value: impl Fn(usize) -> Option<Value>,
+) -> Status {
+    let mut converted = std::mem::take(&mut inst.set_buffer);
+    converted.clear();
+    for i in 0..vrs.len() {
+        match value(i) {
+            Some(v) => converted.push(v),
+            None => {
+                inst.set_buffer = converted;
+                return inst.error(format!("fmi2Set{t}: a value is NULL or not UTF-8"));
             }
         }
-        let status = match inst.check_set(t, vrs, &converted) {
-            Ok(()) => {
-                inst.apply_set(vrs, &mut converted);
-                Status::Ok
-            }
-            Err(e) => inst.error(format!("fmi2Set{t}: {e}")),
-        };
-        converted.clear();
-        inst.set_buffer = converted;
-        status
-    })
+    }
+    let status = match inst.check_set(t, vrs, &converted) {
+        Ok(()) => {
+            inst.apply_set(vrs, &mut converted);
+            Status::Ok
+        }
+        Err(e) => inst.error(format!("fmi2Set{t}: {e}")),
+    };
+    converted.clear();
+    inst.set_buffer = converted;
+    status
+}
+
+/// The string `fmi2GetString` hands out for `vr` (escaped like a log message).
+pub fn read_string<M: Model>(inst: &Instance<M>, vr: u32) -> std::ffi::CString {
+    crate::log::c_message(&inst.core.store.strings[vr as usize])
 }
 
 /// Read a string for `fmi2GetString`; the pointer lives until the next get call.
 pub fn string_out<M: Model>(inst: &mut Instance<M>, vr: u32) -> fmi2String {
-    let s = crate::log::c_message(&inst.core.store.strings[vr as usize]);
+    let s = read_string(inst, vr);
     let p = s.as_ptr();
     inst.string_buffer.push(s);
     p
@@ -518,9 +626,9 @@ pub unsafe fn deserialize<M: Model>(
             return inst.error("fmi2DeSerializeFMUstate: NULL argument");
         }
         let data = std::slice::from_raw_parts(bytes as *const u8, size);
-        let core = match inst.deserialize(data) {
+        let core = match deserialize_core(inst, data) {
             Ok(core) => core,
-            Err(e) => return inst.error(format!("fmi2DeSerializeFMUstate: {e}")),
+            Err(status) => return status,
         };
         match (*state as *mut Snapshot<M>).as_mut() {
             Some(snap) if snap.tag == inst.tag => snap.core = core,
@@ -538,18 +646,27 @@ pub unsafe fn deserialize<M: Model>(
     })
 }
 
+/// The body of `fmi2DeSerializeFMUstate`: the state in `bytes`, or the logged error.
+pub fn deserialize_core<M: Model>(inst: &Instance<M>, bytes: &[u8]) -> Result<Core<M>, Status> {
+    inst.deserialize(bytes)
+        .map_err(|e| inst.error(format!("fmi2DeSerializeFMUstate: {e}")))
+}
+
 /// An optional function this FMU does not provide (its capability flag says so).
 ///
 /// # Safety
 /// FMI 2.0 pointer rules.
 pub unsafe fn unsupported<M: Model>(c: fmi2Component, call: Call) -> Status {
-    with_instance::<M>(c, call, |inst| {
-        inst.error(format!(
-            "{} is not supported by {} (see its capability flags)",
-            call.name(),
-            M::IDENTIFIER
-        ))
-    })
+    with_instance::<M>(c, call, |inst| unsupported_body(inst, call))
+}
+
+/// The body of an optional function this FMU does not provide.
+pub fn unsupported_body<M: Model>(inst: &mut Instance<M>, call: Call) -> Status {
+    inst.error(format!(
+        "{} is not supported by {} (see its capability flags)",
+        call.name(),
+        M::IDENTIFIER
+    ))
 }
 
 /// `fmi2GetStatus` and friends; only `fmi2LastSuccessfulTime` and `fmi2Terminated` are known.
@@ -566,14 +683,45 @@ pub unsafe fn get_status<M: Model, V>(
         if out.is_null() {
             return inst.error("fmi2Get*Status: value is NULL");
         }
-        match read(inst, kind) {
-            Some(v) => {
-                out.write(v);
-                Status::Ok
-            }
-            None => Status::Discard,
-        }
+        status_value(inst, kind, read, |v| out.write(v))
     })
+}
+
+/// The body of `fmi2Get*Status`: `read` gives the value of `kind`, `write` delivers it;
+/// `fmi2Discard` for a kind without one.
+pub fn status_value<M: Model, V>(
+    inst: &Instance<M>,
+    kind: fmi2StatusKind,
+    read: impl Fn(&Instance<M>, fmi2StatusKind) -> Option<V>,
+    write: impl FnOnce(V),
+) -> Status {
+    match read(inst, kind) {
+        Some(v) => {
+            write(v);
+            Status::Ok
+        }
+        None => Status::Discard,
+    }
+}
+
+/// `fmi2GetStatus`: only `fmi2DoStepStatus` (a step always completes synchronously).
+pub fn read_do_step_status<M: Model>(_: &Instance<M>, kind: fmi2StatusKind) -> Option<Status> {
+    (kind == FMI2_DO_STEP_STATUS).then_some(Status::Ok)
+}
+
+/// `fmi2GetRealStatus`: only `fmi2LastSuccessfulTime`.
+pub fn read_real_status<M: Model>(inst: &Instance<M>, kind: fmi2StatusKind) -> Option<f64> {
+    (kind == FMI2_LAST_SUCCESSFUL_TIME).then_some(inst.core.time)
+}
+
+/// `fmi2GetBooleanStatus`: only `fmi2Terminated` (never: the FMU does not end a simulation).
+pub fn read_boolean_status<M: Model>(_: &Instance<M>, kind: fmi2StatusKind) -> Option<fmi2Boolean> {
+    (kind == FMI2_TERMINATED).then_some(FMI2_FALSE)
+}
+
+/// `fmi2GetIntegerStatus`, `fmi2GetStringStatus`: no kind has a value.
+pub fn read_no_status<M: Model, V>(_: &Instance<M>, _: fmi2StatusKind) -> Option<V> {
+    None
 }
 
 /// `fmi2GetVersion` and `fmi2GetTypesPlatform`.

@@ -176,6 +176,23 @@ impl<M: Model> Instance<M> {
         &self.config
     }
 
+    /// The base type and value reference of the variable called `name`.
+    pub fn variable(&self, name: &str) -> Option<(BaseType, u32)> {
+        [
+            BaseType::Real,
+            BaseType::Integer,
+            BaseType::Boolean,
+            BaseType::String,
+        ]
+        .into_iter()
+        .find_map(|t| {
+            self.meta[t as usize]
+                .iter()
+                .position(|m| m.name == name)
+                .map(|vr| (t, vr as u32))
+        })
+    }
+
     pub fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> Status {
         if !start.is_finite() || stop.is_some_and(|s| !s.is_finite() || s < start) {
             return self.error(format!(

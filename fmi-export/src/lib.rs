@@ -8,6 +8,7 @@
 pub mod api;
 pub mod describe;
 pub mod ffi;
+pub mod harness;
 pub mod instance;
 pub mod log;
 pub mod model;
@@ -101,9 +102,7 @@ macro_rules! export_fmu {
                 n: usize,
                 v: *mut f64,
             ) -> Status {
-                api::get::<M, f64>(c, BaseType::Real, vr, n, v, |i, r| {
-                    i.core.store.reals[r as usize]
-                })
+                api::get::<M, f64>(c, BaseType::Real, vr, n, v, api::read_real)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetInteger(
@@ -112,9 +111,7 @@ macro_rules! export_fmu {
                 n: usize,
                 v: *mut fmi2Integer,
             ) -> Status {
-                api::get::<M, fmi2Integer>(c, BaseType::Integer, vr, n, v, |i, r| {
-                    i.core.store.integers[r as usize]
-                })
+                api::get::<M, fmi2Integer>(c, BaseType::Integer, vr, n, v, api::read_integer)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetBoolean(
@@ -123,9 +120,7 @@ macro_rules! export_fmu {
                 n: usize,
                 v: *mut fmi2Boolean,
             ) -> Status {
-                api::get::<M, fmi2Boolean>(c, BaseType::Boolean, vr, n, v, |i, r| {
-                    i.core.store.booleans[r as usize] as fmi2Boolean
-                })
+                api::get::<M, fmi2Boolean>(c, BaseType::Boolean, vr, n, v, api::read_boolean)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetString(
@@ -271,9 +266,7 @@ macro_rules! export_fmu {
                 k: fmi2StatusKind,
                 v: *mut Status,
             ) -> Status {
-                api::get_status::<M, Status>(c, k, v, |_, k| {
-                    (k == FMI2_DO_STEP_STATUS).then_some(Status::Ok)
-                })
+                api::get_status::<M, Status>(c, k, v, api::read_do_step_status)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetRealStatus(
@@ -281,9 +274,7 @@ macro_rules! export_fmu {
                 k: fmi2StatusKind,
                 v: *mut f64,
             ) -> Status {
-                api::get_status::<M, f64>(c, k, v, |i, k| {
-                    (k == FMI2_LAST_SUCCESSFUL_TIME).then_some(i.core.time)
-                })
+                api::get_status::<M, f64>(c, k, v, api::read_real_status)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetIntegerStatus(
@@ -291,7 +282,7 @@ macro_rules! export_fmu {
                 k: fmi2StatusKind,
                 v: *mut fmi2Integer,
             ) -> Status {
-                api::get_status::<M, fmi2Integer>(c, k, v, |_, _| None)
+                api::get_status::<M, fmi2Integer>(c, k, v, api::read_no_status)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetBooleanStatus(
@@ -299,9 +290,7 @@ macro_rules! export_fmu {
                 k: fmi2StatusKind,
                 v: *mut fmi2Boolean,
             ) -> Status {
-                api::get_status::<M, fmi2Boolean>(c, k, v, |_, k| {
-                    (k == FMI2_TERMINATED).then_some(FMI2_FALSE)
-                })
+                api::get_status::<M, fmi2Boolean>(c, k, v, api::read_boolean_status)
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetStringStatus(
@@ -309,7 +298,7 @@ macro_rules! export_fmu {
                 k: fmi2StatusKind,
                 v: *mut fmi2String,
             ) -> Status {
-                api::get_status::<M, fmi2String>(c, k, v, |_, _| None)
+                api::get_status::<M, fmi2String>(c, k, v, api::read_no_status)
             }
         }
     };

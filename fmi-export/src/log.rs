@@ -3,6 +3,7 @@
 use crate::ffi::{fmi2CallbackLogger, fmi2ComponentEnvironment};
 use crate::Status;
 use std::ffi::CString;
+use std::sync::{Arc, Mutex};
 
 /// The log categories every FMU declares, in `LogCategories` order.
 pub const CATEGORIES: [(&str, &str); 6] = [
@@ -27,10 +28,30 @@ const ALL: u32 = (1 << CATEGORIES.len()) - 1;
 /// Warnings, errors and fatal errors reach the master even when debug logging is off.
 const ALWAYS: u32 = (1 << 1) | (1 << 3) | (1 << 4);
 
+/// One message as the master's `fmi2CallbackLogger` receives it (text `%`-escaped).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct LogRecord {
+    pub instance: String,
+    pub status: Status,
+    pub category: String,
+    pub message: String,
+}
+
+/// Where a logger sends its messages.
+#[derive(Clone)]
+pub enum LogSink {
+    /// The master's `fmi2CallbackLogger` and its `componentEnvironment`.
+    Callback {
+        callback: fmi2CallbackLogger,
+        environment: fmi2ComponentEnvironment,
+    },
+    /// In-process capture: every record the callback would have received, in order.
+    Capture(Arc<Mutex<Vec<LogRecord>>>),
+}
+
 /// The master's logger for one instance.
 pub struct Logger {
-    callback: fmi2CallbackLogger,
-    environment: fmi2ComponentEnvironment,
+    sink: LogSink,
     instance_name: CString,
     enabled: u32,
 }
@@ -58,12 +79,28 @@ impl Logger {
         instance_name: &str,
         logging_on: bool,
     ) -> Self {
+        Self::with_sink(
+            LogSink::Callback {
+                callback,
+                environment,
+            },
+            instance_name,
+            logging_on,
+        )
+    }
+
+    /// A logger that sends to `sink`; `logging_on` as `fmi2Instantiate`'s `loggingOn`.
+    pub fn with_sink(sink: LogSink, instance_name: &str, logging_on: bool) -> Self {
         Logger {
-            callback,
-            environment,
+            sink,
             instance_name: c_message(instance_name),
             enabled: if logging_on { ALL } else { ALWAYS },
         }
+    }
+
+    /// Where this logger sends its messages.
+    pub fn sink(&self) -> &LogSink {
+        &self.sink
     }
 
     /// Send `message` with `status` if its category is enabled.
@@ -72,20 +109,41 @@ impl Logger {
         if self.enabled & (1 << cat) == 0 {
             return;
         }
-        let Some(callback) = self.callback else {
-            return;
-        };
-        let category = CString::new(CATEGORIES[cat].0).expect("static name");
         let text = c_message(message);
-        // SAFETY: the master gave us this logger and promised it stays valid for the instance's life.
-        unsafe {
-            callback(
-                self.environment,
-                self.instance_name.as_ptr(),
-                status,
-                category.as_ptr(),
-                text.as_ptr(),
-            )
+        match &self.sink {
+            LogSink::Callback {
+                callback,
+                environment,
+            } => {
+                let Some(callback) = callback else {
+                    return;
+                };
+                let category = CString::new(CATEGORIES[cat].0).expect("static name");
+                // SAFETY: the master gave us this logger and promised it stays valid for the
+                // instance's life.
+                unsafe {
+                    callback(
+                        *environment,
+                        self.instance_name.as_ptr(),
+                        status,
+                        category.as_ptr(),
+                        text.as_ptr(),
+                    )
+                }
+            }
+            LogSink::Capture(records) => {
+                let record = LogRecord {
+                    instance: self.instance_name.to_string_lossy().into_owned(),
+                    status,
+                    category: CATEGORIES[cat].0.to_owned(),
+                    message: text.to_string_lossy().into_owned(),
+                };
+                // A panic contained while the lock was held leaves the records intact.
+                records
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner())
+                    .push(record);
+            }
         }
     }
 

@@ -199,6 +199,11 @@ impl From<bool> for Value {
         Value::Boolean(v)
     }
 }
+impl From<&str> for Value {
+    fn from(v: &str) -> Self {
+        Value::String(v.to_owned())
+    }
+}
 
 /// A declared variable: its spec and its value reference.
 #[derive(Debug, Clone)]

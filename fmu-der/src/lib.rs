@@ -19,6 +19,7 @@
 //! its command with the lag `τ_dc` within `[0, P_avail]`, and a dc link (`C_dc`, `G_dc`) whose
 //! voltage `v_dc` a proportional controller (`k_dc`) holds. The control math is `dvpp_control`.
 
+pub mod ports;
 mod preset;
 
 pub use preset::{Preset, UnitDefaults};
@@ -643,15 +644,22 @@ impl Model for Der {
         v: &mut Variables,
     ) -> Result<Self, String> {
         let u = UnitDefaults::of(config.preset);
-        let io = ["p", "q", "v", "v_angle"];
+        let io = [ports::P, ports::Q, ports::V, ports::V_ANGLE];
         let par = |v: &mut Variables, name: &str, start: f64, unit: &str, desc: &str, min: f64| {
             v.real(Spec::parameter(name, start, unit, desc).min(min))
         };
-        let s_rated = par(v, "S_rated", u.s_rated, "MVA", "converter rating", 1e-3);
+        let s_rated = par(
+            v,
+            ports::S_RATED,
+            u.s_rated,
+            "MVA",
+            "converter rating",
+            1e-3,
+        );
         let s_base = par(v, "S_base", 100.0, "MVA", "system base power", 1e-3);
         let s_dvpp = par(
             v,
-            "S_dvpp",
+            ports::S_DVPP,
             96.0,
             "MVA",
             "DVPP base power T_des is specified on",
@@ -659,12 +667,17 @@ impl Model for Der {
         );
         let f_nom = par(v, "f_nom", 50.0, "Hz", "nominal frequency", 1e-3);
         let mode = v.integer(
-            Spec::parameter("mode", u.mode, "", "1 = grid-forming, 2 = grid-following")
-                .range(1.0, 2.0),
+            Spec::parameter(
+                ports::MODE,
+                u.mode,
+                "",
+                "1 = grid-forming, 2 = grid-following",
+            )
+            .range(1.0, 2.0),
         );
         let h = par(
             v,
-            "Tdes.H",
+            ports::TDES_H,
             5.55,
             "s",
             "virtual inertia of T_pf = 1/(H s + D)",
@@ -672,7 +685,7 @@ impl Model for Der {
         );
         let d = par(
             v,
-            "Tdes.D",
+            ports::TDES_D,
             33.33,
             "pu",
             "damping (droop gain) of T_pf = 1/(H s + D)",
@@ -680,7 +693,7 @@ impl Model for Der {
         );
         let dq = par(
             v,
-            "Tdes.Dq",
+            ports::TDES_DQ,
             0.01,
             "pu",
             "q-v droop of T_qv = Dq (dv = -Dq dq)",
@@ -696,7 +709,7 @@ impl Model for Der {
         );
         let r_f = par(
             v,
-            "R_f",
+            ports::R_F,
             0.01,
             "pu",
             "grid-forming: resistance between the imposed voltage (the regulated filter-capacitor voltage) and the terminal bus, the LV/MV transformer, on S_rated",
@@ -704,7 +717,7 @@ impl Model for Der {
         );
         let x_f = par(
             v,
-            "X_f",
+            ports::X_F,
             0.10,
             "pu",
             "grid-forming: reactance between the imposed voltage and the terminal bus, the LV/MV transformer, on S_rated",
@@ -812,7 +825,7 @@ impl Model for Der {
         );
         let p_avail0 = par(
             v,
-            "P_avail0",
+            ports::P_AVAIL0,
             u.p_avail0,
             "pu",
             "available active power of the primary source, on S_base",
@@ -831,28 +844,35 @@ impl Model for Der {
             "availability step on S_base (negative = less available power)",
         ));
         let p = v.real(Spec::input(
-            "p",
+            ports::P,
             u.p,
             "pu",
             "measured active power injected at the terminal, on S_base",
         ));
         let q = v.real(Spec::input(
-            "q",
+            ports::Q,
             0.0,
             "pu",
             "measured reactive power injected at the terminal, on S_base",
         ));
-        let vv = v
-            .real(Spec::input("v", 1.0, "pu", "voltage magnitude at the regulated point").min(0.0));
+        let vv = v.real(
+            Spec::input(
+                ports::V,
+                1.0,
+                "pu",
+                "voltage magnitude at the regulated point",
+            )
+            .min(0.0),
+        );
         let v_angle = v.real(Spec::input(
-            "v_angle",
+            ports::V_ANGLE,
             0.0,
             "rad",
             "voltage angle at the regulated point, rotating frame at f_nom",
         ));
         let mu_p = v.real(
             Spec::input(
-                "mu_p",
+                ports::MU_P,
                 u.mu_p,
                 "1",
                 "ADPF dc gain of the p-f channel from the operator (static, low-pass)",
@@ -861,7 +881,7 @@ impl Model for Der {
         );
         let mu_q = v.real(
             Spec::input(
-                "mu_q",
+                ports::MU_Q,
                 u.mu_q,
                 "1",
                 "ADPF dc gain of the v-q channel from the operator (static, low-pass)",
@@ -872,7 +892,7 @@ impl Model for Der {
             .map(|k| {
                 v.real(
                     Spec::input(
-                        &format!("mu_p_lpf[{k}]"),
+                        &ports::mu_p_lpf(k),
                         u.mu_p_lpf.get(k - 1).copied().unwrap_or(0.0),
                         "1",
                         &format!("complement unit: dc gain of low-pass unit {k} it closes"),
@@ -923,13 +943,13 @@ impl Model for Der {
             mu_p_lpf,
             theta: out(
                 v,
-                "theta",
+                ports::THETA,
                 "rad",
                 "grid-forming: internal voltage angle the converter imposes; grid-following: PLL angle",
             ),
             e: out(
                 v,
-                "E",
+                ports::E,
                 "pu",
                 "grid-forming: internal voltage magnitude the converter imposes (held in grid-following)",
             ),
@@ -940,18 +960,18 @@ impl Model for Der {
             )),
             p_ref: out(
                 v,
-                "p_ref",
+                ports::P_REF,
                 "pu",
                 "grid-following: active power reference on S_base; grid-forming: the active set point (dispatch curtailed to P_avail)",
             ),
             q_ref: out(
                 v,
-                "q_ref",
+                ports::Q_REF,
                 "pu",
                 "reactive power reference q_0 - T_i^vq dv on S_base (grid-forming: tracked by E)",
             ),
             p_avail: v.real(Spec::output(
-                "P_avail",
+                ports::P_AVAIL,
                 "pu",
                 "available active power of the primary source, on S_base",
             )),

@@ -3,7 +3,7 @@
 use dvpp_control::CaseStudyI;
 use serde::{Deserialize, Serialize};
 
-/// A case-study I unit (DVPP_MATH.md §7): wind and PV low-pass with `τ` = their `τ_dc` and dc
+/// A case-study I unit (`docs/control.md` §9): wind and PV low-pass with `τ` = their `τ_dc` and dc
 /// gains proportional to their ratings, the BESS the complement of both; reactive ADPFs static,
 /// proportional to the reactive capacity at zero active power (the ratings).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -1,5 +1,6 @@
-//! Load-step experiment and the frequency figures a reviewer asks for (nadir, RoCoF, settling,
-//! droop check). Shared by the tests and the `load_step` example.
+//! Load-step experiment and its frequency figures (nadir, RoCoF, settling, droop check).
+//!
+//! Shared by the tests and the `load_step` example.
 
 use crate::case::{Case, Event, LoadModel};
 use crate::grid::{Grid, GridError};

@@ -178,141 +178,9 @@ pub struct Load {
     pub model: LoadModel,
 }
 
-/// Synchronous-machine model.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "snake_case")]
-pub enum MachineModel {
-    /// Two-axis (flux-decay in d and q) model: states δ, ω, E'q, E'd.
-    TwoAxis,
-    /// Classical model: constant E' behind x'd, states δ, ω.
-    Classical,
-}
-
-/// The base the machine's H, D and reactances are given on.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(rename_all = "snake_case")]
-pub enum ParamBase {
-    /// System base `base_mva`.
-    #[default]
-    System,
-    /// The machine's own `rating_mva`.
-    Machine,
-}
-
-/// Turbine-governor. All powers in pu of the machine rating; `r` is the permanent droop.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
-pub enum Governor {
-    /// Steam: droop 1/r, governor lag t_g, steam chest t_ch, reheater t_rh with HP fraction f_hp.
-    TgovReheat {
-        r: f64,
-        t_g: f64,
-        t_ch: f64,
-        t_rh: f64,
-        f_hp: f64,
-        #[serde(default = "default_pmax")]
-        p_max: f64,
-        #[serde(default)]
-        p_min: f64,
-    },
-    /// Hydro: droop 1/r, transient-droop lead-lag (t_r s + 1)/(t_2 s + 1), gate servo t_g,
-    /// water column (1 - t_w s)/(1 + 0.5 t_w s).
-    Hygov {
-        r: f64,
-        t_r: f64,
-        t_2: f64,
-        t_g: f64,
-        t_w: f64,
-        #[serde(default = "default_pmax")]
-        p_max: f64,
-        #[serde(default)]
-        p_min: f64,
-    },
-}
-
-fn default_pmax() -> f64 {
-    10.0
-}
-
-/// Excitation system (voltage regulator), on the machine's field-voltage pu.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
-pub enum Exciter {
-    /// Simplified exciter: lead-lag (ta_tb·t_b s + 1)/(t_b s + 1), then k/(t_e s + 1), limited.
-    Sexs {
-        k: f64,
-        ta_tb: f64,
-        t_b: f64,
-        t_e: f64,
-        #[serde(default = "default_emin")]
-        e_min: f64,
-        #[serde(default = "default_emax")]
-        e_max: f64,
-    },
-    /// IEEE type 1 (DC exciter with rate feedback); saturation S_E = se_a·exp(se_b·E_fd).
-    IeeeT1 {
-        ka: f64,
-        ta: f64,
-        ke: f64,
-        te: f64,
-        kf: f64,
-        tf: f64,
-        #[serde(default)]
-        se_a: f64,
-        #[serde(default)]
-        se_b: f64,
-        #[serde(default = "default_emin")]
-        vr_min: f64,
-        #[serde(default = "default_emax")]
-        vr_max: f64,
-    },
-}
-
-fn default_emin() -> f64 {
-    -10.0
-}
-fn default_emax() -> f64 {
-    10.0
-}
-
-/// Synchronous machine with optional governor and exciter.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Machine {
-    #[serde(default)]
-    pub name: Option<String>,
-    pub bus: u32,
-    pub model: MachineModel,
-    pub rating_mva: f64,
-    /// Base of `h`, `d`, `ra` and the reactances.
-    #[serde(default)]
-    pub base: ParamBase,
-    pub h: f64,
-    #[serde(default)]
-    pub d: f64,
-    #[serde(default)]
-    pub ra: f64,
-    pub xd: f64,
-    pub xd_p: f64,
-    #[serde(default)]
-    pub xq: Option<f64>,
-    #[serde(default)]
-    pub xq_p: Option<f64>,
-    #[serde(default)]
-    pub td0_p: Option<f64>,
-    #[serde(default)]
-    pub tq0_p: Option<f64>,
-    /// Active-power dispatch (ignored at the slack bus).
-    #[serde(default)]
-    pub p_mw: f64,
-    /// Reactive dispatch, used only if the machine sits on a PQ bus.
-    #[serde(default)]
-    pub q_mvar: f64,
-    #[serde(default)]
-    pub governor: Option<Governor>,
-    #[serde(default)]
-    pub exciter: Option<Exciter>,
-}
+pub use crate::exciter::Exciter;
+pub use crate::governor::Governor;
+pub use crate::machine::{Machine, MachineModel, ParamBase};
 
 /// DER slot kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -337,8 +205,10 @@ pub struct DerSlot {
     /// the transformer behind its regulated filter-capacitor voltage), pu on the slot rating.
     #[serde(default)]
     pub r: f64,
-    /// Series reactance between the slot's source and its bus, pu on the slot rating.
-    pub x: f64,
+    /// Series reactance between the slot's source and its bus, pu on the slot rating. Needed
+    /// by a grid-forming slot; informational (may be left out) for a grid-following one.
+    #[serde(default)]
+    pub x: Option<f64>,
     /// Active dispatch, MW (at a slack bus the slack power is shared by rating instead).
     #[serde(default)]
     pub p_mw: f64,
@@ -449,7 +319,7 @@ pub struct BranchData {
     pub in_service: bool,
 }
 
-fn check_range(
+pub(crate) fn check_range(
     element: &str,
     parameter: &str,
     value: f64,
@@ -473,10 +343,10 @@ fn impedance_ok(r: f64, x: f64) -> bool {
     r.is_finite() && x.is_finite() && r >= 0.0 && x > 0.0
 }
 
-fn pos(element: &str, parameter: &str, v: f64) -> Result<(), CaseError> {
+pub(crate) fn pos(element: &str, parameter: &str, v: f64) -> Result<(), CaseError> {
     check_range(element, parameter, v, v > 0.0, "> 0")
 }
-fn nonneg(element: &str, parameter: &str, v: f64) -> Result<(), CaseError> {
+pub(crate) fn nonneg(element: &str, parameter: &str, v: f64) -> Result<(), CaseError> {
     check_range(element, parameter, v, v >= 0.0, ">= 0")
 }
 
@@ -636,134 +506,34 @@ impl Case {
         for (j, m) in self.machines.iter().enumerate() {
             let el = format!("machine {} (bus {})", j + 1, m.bus);
             bus_ok(el.clone(), m.bus)?;
-            pos(&el, "rating_mva", m.rating_mva)?;
-            pos(&el, "h", m.h)?;
-            nonneg(&el, "d", m.d)?;
-            nonneg(&el, "ra", m.ra)?;
-            pos(&el, "xd_p", m.xd_p)?;
-            check_range(&el, "xd", m.xd, m.xd >= m.xd_p, ">= xd_p")?;
-            check_range(&el, "p_mw", m.p_mw, true, "finite")?;
-            match m.model {
-                MachineModel::TwoAxis => {
-                    for (name, v) in [
-                        ("xq", m.xq),
-                        ("xq_p", m.xq_p),
-                        ("td0_p", m.td0_p),
-                        ("tq0_p", m.tq0_p),
-                    ] {
-                        match v {
-                            None => {
-                                return Err(CaseError::Inconsistent(format!(
-                                    "{el}: two_axis model needs `{name}`"
-                                )))
-                            }
-                            Some(v) => pos(&el, name, v)?,
-                        }
-                    }
-                    let (xq, xq_p) = (m.xq.unwrap(), m.xq_p.unwrap());
-                    check_range(&el, "xq", xq, xq >= xq_p, ">= xq_p")?;
-                }
-                MachineModel::Classical => {
-                    if m.exciter.is_some() {
-                        return Err(CaseError::Inconsistent(format!(
-                            "{el}: a classical machine has constant E' and cannot take an exciter"
-                        )));
-                    }
-                }
-            }
-            match &m.governor {
-                Some(Governor::TgovReheat {
-                    r,
-                    t_g,
-                    t_ch,
-                    t_rh,
-                    f_hp,
-                    p_max,
-                    p_min,
-                }) => {
-                    check_range(&el, "governor.r", *r, *r > 0.0 && *r < 1.0, "0 < r < 1")?;
-                    pos(&el, "governor.t_g", *t_g)?;
-                    pos(&el, "governor.t_ch", *t_ch)?;
-                    pos(&el, "governor.t_rh", *t_rh)?;
-                    check_range(
-                        &el,
-                        "governor.f_hp",
-                        *f_hp,
-                        (0.0..=1.0).contains(f_hp),
-                        "0..1",
-                    )?;
-                    check_range(&el, "governor.p_max", *p_max, p_max > p_min, "> p_min")?;
-                }
-                Some(Governor::Hygov {
-                    r,
-                    t_r,
-                    t_2,
-                    t_g,
-                    t_w,
-                    p_max,
-                    p_min,
-                }) => {
-                    check_range(&el, "governor.r", *r, *r > 0.0 && *r < 1.0, "0 < r < 1")?;
-                    nonneg(&el, "governor.t_r", *t_r)?;
-                    pos(&el, "governor.t_2", *t_2)?;
-                    pos(&el, "governor.t_g", *t_g)?;
-                    pos(&el, "governor.t_w", *t_w)?;
-                    check_range(&el, "governor.p_max", *p_max, p_max > p_min, "> p_min")?;
-                }
-                None => {}
-            }
-            match &m.exciter {
-                Some(Exciter::Sexs {
-                    k,
-                    ta_tb,
-                    t_b,
-                    t_e,
-                    e_min,
-                    e_max,
-                }) => {
-                    pos(&el, "exciter.k", *k)?;
-                    nonneg(&el, "exciter.ta_tb", *ta_tb)?;
-                    pos(&el, "exciter.t_b", *t_b)?;
-                    pos(&el, "exciter.t_e", *t_e)?;
-                    check_range(&el, "exciter.e_max", *e_max, e_max > e_min, "> e_min")?;
-                }
-                Some(Exciter::IeeeT1 {
-                    ka,
-                    ta,
-                    ke,
-                    te,
-                    kf,
-                    tf,
-                    se_a,
-                    se_b,
-                    vr_min,
-                    vr_max,
-                }) => {
-                    pos(&el, "exciter.ka", *ka)?;
-                    pos(&el, "exciter.ta", *ta)?;
-                    nonneg(&el, "exciter.ke", *ke)?;
-                    pos(&el, "exciter.te", *te)?;
-                    nonneg(&el, "exciter.kf", *kf)?;
-                    pos(&el, "exciter.tf", *tf)?;
-                    nonneg(&el, "exciter.se_a", *se_a)?;
-                    nonneg(&el, "exciter.se_b", *se_b)?;
-                    check_range(&el, "exciter.vr_max", *vr_max, vr_max > vr_min, "> vr_min")?;
-                }
-                None => {}
-            }
+            m.validate(&el)?;
         }
         for (k, d) in self.ders.iter().enumerate() {
             let el = format!("der slot {} (bus {})", k + 1, d.bus);
             bus_ok(el.clone(), d.bus)?;
             pos(&el, "rating_mva", d.rating_mva)?;
-            // a grid-following slot's impedance is informational and may be zero
-            let z_ok = impedance_ok(d.r, d.x)
-                || (d.kind == DerKind::GridFollowing && d.r == 0.0 && d.x == 0.0);
+            // a grid-following slot's impedance is informational and may be zero or left out
+            let x = match (d.kind, d.x) {
+                (DerKind::GridForming, None) => {
+                    return Err(CaseError::Inconsistent(format!(
+                        "{el}: a grid_forming slot needs `x` (the reactance behind its source)"
+                    )))
+                }
+                (_, x) => x,
+            };
+            let z_ok = match x {
+                Some(x) => {
+                    impedance_ok(d.r, x)
+                        || (d.kind == DerKind::GridFollowing && d.r == 0.0 && x == 0.0)
+                }
+                None => true, // grid-following without impedance data
+            };
+            let x = x.unwrap_or(0.0);
             if !z_ok {
                 return Err(CaseError::NonPositiveImpedance {
                     element: el,
                     r: d.r,
-                    x: d.x,
+                    x,
                 });
             }
             check_range(

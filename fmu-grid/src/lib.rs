@@ -1,9 +1,11 @@
 //! Reduced grid FMU: a phasor (RMS) power-system model built from a case file, with DER slots.
 //!
 //! The physics lives in the modules: [`case`] (the TOML case format and its validation),
-//! [`powerflow`] (Newton–Raphson power flow), [`grid`] (machines, governors, exciters, DER slots,
-//! events, PCC and COI outputs, RK4 integration with an algebraic network solve) and [`analysis`]
-//! (load-step figures). This file wraps [`Grid`] as an FMU ([`GridFmu`]).
+//! [`powerflow`] (Newton–Raphson power flow), [`grid`] (the model: DER slots, PCC and COI
+//! outputs) with [`network`] (algebraic network solve), the dynamic models [`machine`],
+//! [`governor`] and [`exciter`], [`integration`] (internal step and RK4), [`events`] and
+//! [`snapshot`], and [`analysis`] (load-step figures). This file wraps [`Grid`] as an FMU
+//! ([`GridFmu`]).
 //!
 //! `[model]` in `resources/config.toml` selects the case: `case = "<built-in name>"` or
 //! `case_file = "<file in resources/>"` (default: the built-in `ieee9_dvpp`), and may append
@@ -19,14 +21,24 @@
 
 pub mod analysis;
 pub mod case;
+pub mod events;
+pub mod exciter;
+pub mod governor;
 pub mod grid;
+pub mod integration;
+pub mod machine;
+pub mod network;
+pub mod ports;
 pub mod powerflow;
+pub mod snapshot;
 
 pub use case::{Case, CaseError, DerKind, Event, LoadModel};
+pub use events::{EventOverride, EventState};
 pub use grid::{
-    DerInput, DerOutput, DerSetpoint, EventOverride, EventState, Grid, GridError, MachineOutput,
-    Outputs, PccOutput, MAX_INTERNAL_STEP,
+    DerInput, DerOutput, DerSetpoint, Grid, GridError, MachineOutput, Outputs, PccOutput,
 };
+pub use integration::{MAX_INTERNAL_STEP, MIN_INTERNAL_STEP, STEPS_PER_TIME_CONSTANT};
+pub use network::CONST_POWER_V_MIN;
 pub use powerflow::PowerFlow;
 
 use fmi_export::{Boolean, Context, Model, ModelError, Real, Spec, Store, Variables};
@@ -134,6 +146,7 @@ struct EventVars {
 /// Handles of one machine's outputs.
 #[derive(Clone, Serialize, Deserialize)]
 struct MachineVars {
+    in_service: Boolean,
     omega: Real,
     p: Real,
     q: Real,
@@ -153,6 +166,17 @@ pub struct GridFmu {
     coi_f: Real,
     /// Generation, load, losses and generation − load − losses.
     balance: [Real; 4],
+    /// The reduced internal step (if any) has been logged.
+    step_logged: bool,
+}
+
+/// A Boolean output (discrete; Real outputs come from [`Spec::output`]).
+fn boolean_output(name: &str, description: &str) -> Spec {
+    Spec {
+        start: fmi_export::Value::Boolean(false),
+        variability: fmi_export::model_description::Variability::Discrete,
+        ..Spec::output(name, "", description)
+    }
 }
 
 fn event_label(e: &Event) -> String {
@@ -178,6 +202,7 @@ impl GridFmu {
             s[vars.v_angle] = d.v_angle;
         }
         for (vars, m) in self.machines.iter().zip(&o.sg) {
+            s[vars.in_service] = m.in_service;
             s[vars.omega] = m.omega;
             s[vars.p] = m.p;
             s[vars.q] = m.q;
@@ -280,20 +305,19 @@ impl Model for GridFmu {
 
         let mut slots = Vec::new();
         for (k, init) in grid.der_initial().iter().enumerate() {
-            let name = |s: &str| format!("der[{}].{s}", k + 1);
             let bus = case.ders[k].bus;
             let (grid_forming, a, b) = match *init {
                 DerSetpoint::GridForming { theta0, e0 } => (
                     true,
                     v.real(Spec::input(
-                        &name("theta"),
+                        &ports::der_theta(k + 1),
                         theta0,
                         "rad",
                         "grid-forming slot: internal voltage angle behind the slot impedance",
                     )),
                     v.real(
                         Spec::input(
-                            &name("E"),
+                            &ports::der_e(k + 1),
                             e0,
                             "pu",
                             "grid-forming slot: internal voltage magnitude behind the slot impedance",
@@ -304,13 +328,13 @@ impl Model for GridFmu {
                 DerSetpoint::GridFollowing { p0, q0 } => (
                     false,
                     v.real(Spec::input(
-                        &name("p_ref"),
+                        &ports::der_p_ref(k + 1),
                         p0,
                         "pu",
                         "grid-following slot: active power injected at its bus, on S_base",
                     )),
                     v.real(Spec::input(
-                        &name("q_ref"),
+                        &ports::der_q_ref(k + 1),
                         q0,
                         "pu",
                         "grid-following slot: reactive power injected at its bus, on S_base",
@@ -322,22 +346,22 @@ impl Model for GridFmu {
                 a,
                 b,
                 p: v.real(Spec::output(
-                    &name("p"),
+                    &ports::der_p(k + 1),
                     "pu",
                     &format!("active power the slot injects into bus {bus}, on S_base"),
                 )),
                 q: v.real(Spec::output(
-                    &name("q"),
+                    &ports::der_q(k + 1),
                     "pu",
                     &format!("reactive power the slot injects into bus {bus}, on S_base"),
                 )),
                 v: v.real(Spec::output(
-                    &name("v"),
+                    &ports::der_v(k + 1),
                     "pu",
                     &format!("voltage magnitude at the slot's bus {bus}"),
                 )),
                 v_angle: v.real(Spec::output(
-                    &name("v_angle"),
+                    &ports::der_v_angle(k + 1),
                     "rad",
                     &format!(
                         "voltage angle at the slot's bus {bus}, frame rotating at f_nom, unwrapped"
@@ -354,22 +378,22 @@ impl Model for GridFmu {
             .unwrap_or(case.buses[0].id);
         let pcc = [
             v.real(Spec::output(
-                "pcc.p",
+                ports::PCC_P,
                 "pu",
                 "DVPP active power at the PCC (sum of its slots and branches), on S_base",
             )),
             v.real(Spec::output(
-                "pcc.q",
+                ports::PCC_Q,
                 "pu",
                 "DVPP reactive power at the PCC (sum of its slots and branches), on S_base",
             )),
             v.real(Spec::output(
-                "pcc.v",
+                ports::PCC_V,
                 "pu",
                 &format!("PCC voltage magnitude (bus {pcc_bus})"),
             )),
             v.real(Spec::output(
-                "pcc.f",
+                ports::PCC_F,
                 "pu",
                 "PCC frequency, pu of f_nom: rate of change of the PCC voltage angle through \
                  s/(T_f s + 1), T_f from the case (default 0.02 s)",
@@ -392,10 +416,20 @@ impl Model for GridFmu {
                     .clone()
                     .unwrap_or_else(|| format!("machine at bus {}", m.bus));
                 MachineVars {
+                    in_service: v.boolean(boolean_output(
+                        &name("in_service"),
+                        &format!(
+                            "{label}: connected to the grid (false after a generator trip; \
+                             coi.f and the sys.* totals count connected machines only)"
+                        ),
+                    )),
                     omega: v.real(Spec::output(
                         &name("omega"),
                         "pu",
-                        &format!("{label}: rotor speed, pu of f_nom"),
+                        &format!(
+                            "{label}: rotor speed, pu of f_nom (after a trip: the isolated \
+                             unit's own speed under its governor)"
+                        ),
                     )),
                     p: v.real(Spec::output(
                         &name("p"),
@@ -448,10 +482,17 @@ impl Model for GridFmu {
             pcc,
             coi_f,
             balance,
+            step_logged: false,
         })
     }
 
-    fn initialize(&mut self, s: &mut Store, _: &mut Context) -> Result<(), ModelError> {
+    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
+        if !self.step_logged {
+            if let Some(note) = self.grid.internal_step_note() {
+                ctx.event(note);
+            }
+            self.step_logged = true;
+        }
         let sb = self.grid.case().base_mva;
         for (i, e) in self.events.iter().enumerate() {
             let ov = EventOverride {
@@ -541,6 +582,26 @@ mod tests {
             .load_case(Some(Path::new("/tmp")))
             .unwrap_err()
             .contains("inside resources"));
+    }
+
+    #[test]
+    fn machines_declare_a_boolean_in_service_output() {
+        let mut vars = fmi_export::Variables::default();
+        let fmu = GridFmu::declare(&GridConfig::default(), None, &mut vars).unwrap();
+        assert_eq!(fmu.machines.len(), 2);
+        for j in 1..=2 {
+            let name = format!("sg[{j}].in_service");
+            let d = vars
+                .declared()
+                .iter()
+                .find(|d| d.spec.name == name)
+                .unwrap_or_else(|| panic!("{name} is not declared"));
+            assert!(matches!(d.spec.start, fmi_export::Value::Boolean(_)));
+            assert_eq!(
+                d.spec.causality,
+                fmi_export::model_description::Causality::Output
+            );
+        }
     }
 
     #[test]

@@ -172,3 +172,82 @@ fn unknown_field_is_rejected() {
     let t = base().replacen("xd_p = 0.0608", "xd_p = 0.0608\nxdd = 0.1", 1);
     assert!(matches!(err(&t), CaseError::Parse(_)));
 }
+
+/// ieee9 with SG3 made a classical machine: no exciter, no q-axis data and no `xd`.
+fn ieee9_classical_sg3() -> String {
+    let t = base();
+    let i = t.find("name = \"SG3\"").unwrap();
+    let (head, sg3) = t.split_at(i);
+    let sg3 = sg3
+        .replacen("model = \"two_axis\"", "model = \"classical\"", 1)
+        .replacen("xd = 1.3125\n", "", 1)
+        .replacen(
+            "xq = 1.2578\nxq_p = 0.25\ntd0_p = 5.89\ntq0_p = 0.6\n",
+            "",
+            1,
+        );
+    let a = sg3.find("[machine.exciter]").unwrap();
+    let b = sg3.find("# PCC").unwrap();
+    format!("{head}{}{}", &sg3[..a], &sg3[b..])
+}
+
+#[test]
+fn classical_machine_needs_no_unused_data() {
+    let t = ieee9_classical_sg3();
+    assert!(!t[t.find("name = \"SG3\"").unwrap()..].contains("\nxd ="));
+    let c = Case::from_toml_str(&t).unwrap();
+    assert_eq!(c.machines[2].xd, None);
+    // and runs: a flat start from the power flow
+    let g = fmu_grid::Grid::new(&c).unwrap();
+    assert!(g.max_derivative().unwrap() < 1e-10);
+}
+
+#[test]
+fn two_axis_machine_without_its_data_is_refused_by_name() {
+    let t = base().replacen("xd = 1.3125\n", "", 1);
+    match err(&t) {
+        CaseError::Inconsistent(m) => assert!(m.contains("two_axis") && m.contains("`xd`"), "{m}"),
+        e => panic!("wrong error {e:?}"),
+    }
+    let t = base().replacen("td0_p = 5.89\n", "", 1);
+    match err(&t) {
+        CaseError::Inconsistent(m) => assert!(m.contains("`td0_p`"), "{m}"),
+        e => panic!("wrong error {e:?}"),
+    }
+}
+
+#[test]
+fn slot_reactance_only_needed_when_grid_forming() {
+    // grid-following slots of ieee9_hybrid (4..6) may leave their informational x out
+    let hybrid = builtin_text("ieee9_hybrid").unwrap();
+    let c = Case::from_toml_str(hybrid).unwrap();
+    let mut lines: Vec<&str> = hybrid.lines().collect();
+    let mut slot = 0;
+    let mut kind = "";
+    lines.retain(|l| {
+        if *l == "[[der]]" {
+            slot += 1;
+        }
+        if l.starts_with("kind = ") {
+            kind = l;
+        }
+        !(slot > 0 && kind.contains("grid_following") && l.starts_with("x = "))
+    });
+    let gfl_without_x = lines.join("\n");
+    let c2 = Case::from_toml_str(&gfl_without_x).unwrap();
+    assert_eq!(c2.ders.len(), c.ders.len());
+    assert!(c2
+        .ders
+        .iter()
+        .all(|d| (d.kind == fmu_grid::DerKind::GridForming) == d.x.is_some()));
+    // a grid-forming slot without x is refused by name
+    let t = builtin_text("ieee9_dvpp")
+        .unwrap()
+        .replacen("\nx = 0.10\n", "\n", 1);
+    match err(&t) {
+        CaseError::Inconsistent(m) => {
+            assert!(m.contains("grid_forming") && m.contains("`x`"), "{m}")
+        }
+        e => panic!("wrong error {e:?}"),
+    }
+}

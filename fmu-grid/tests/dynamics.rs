@@ -4,7 +4,7 @@ use fmu_grid::{Case, DerInput, DerSetpoint, Event, EventOverride, Grid, LoadMode
 
 #[test]
 fn ieee9_power_flow_matches_reference() {
-    // GRID_DATA.md table
+    // published power-flow solution of the WSCC 9-bus system (Anderson & Fouad, MATPOWER case9)
     let vm = [
         1.04, 1.025, 1.025, 1.0258, 1.0127, 1.0324, 1.0159, 1.0258, 0.9956,
     ];
@@ -352,4 +352,165 @@ fn hybrid_survives_outage_of_both_machines_with_inputs_held() {
         (o.pcc.f - 1.0).abs() < 1e-9,
         "fixed-angle sources: nominal frequency"
     );
+}
+
+/// ieee9 with SG2's steam-chest time constant set to `t_ch` seconds and a 28 MW load step at
+/// bus 5 at t = 0.2 s.
+fn ieee9_with_t_ch(t_ch: f64) -> Case {
+    let mut case = Case::builtin("ieee9").unwrap();
+    match &mut case.machines[1].governor {
+        Some(fmu_grid::case::Governor::TgovReheat { t_ch: t, .. }) => *t = t_ch,
+        g => panic!("SG2 governor {g:?}"),
+    }
+    case.events.push(Event::LoadStep {
+        time: 0.2,
+        bus: 5,
+        dp_mw: 28.0,
+        dq_mvar: 0.0,
+        model: LoadModel::ConstantImpedance,
+    });
+    case
+}
+
+/// Run `g` to `t_end` with communication step `h`; (ω, p_m) of SG2 at every step.
+fn sg2_trace(g: &mut Grid, t_end: f64, h: f64) -> Vec<(f64, f64)> {
+    let n = (t_end / h).round() as usize;
+    (0..n)
+        .map(|i| {
+            g.step(i as f64 * h, h).unwrap();
+            let o = g.outputs();
+            assert!(
+                o.balance_p.abs() < 1e-6,
+                "t = {} balance {}",
+                o.t,
+                o.balance_p
+            );
+            (o.sg[1].omega, o.sg[1].pm)
+        })
+        .collect()
+}
+
+#[test]
+fn fast_governor_reduces_the_internal_step_and_matches_a_fine_step() {
+    // t_ch = 0.3 ms: RK4 at the default 1 ms internal step is unstable (h > 2.785 τ).
+    let case = ieee9_with_t_ch(3e-4);
+    let mut g = Grid::new(&case).unwrap();
+    assert!(
+        g.internal_step() <= 3e-4 / 3.0 + 1e-15,
+        "{}",
+        g.internal_step()
+    );
+    assert_eq!(g.internal_step(), g.max_internal_step());
+    let note = g.internal_step_note().expect("the reduction is reported");
+    assert!(
+        note.contains("machine[2].governor.t_ch = 0.0003 s"),
+        "{note}"
+    );
+    // the unstable step cannot be forced
+    assert!(g.set_internal_step(1e-3).is_err());
+    let mut fine = Grid::new(&case).unwrap();
+    fine.set_internal_step(2.5e-5).unwrap();
+    // 1 ms communication step, through the load step and past t = 2 s (at a 1 ms internal step
+    // the steam-chest mode grows ×2.2 per step and overflows within about a second)
+    let a = sg2_trace(&mut g, 2.0, 1e-3);
+    let b = sg2_trace(&mut fine, 2.0, 1e-3);
+    let (mut dw, mut dpm) = (0.0f64, 0.0f64);
+    for ((wa, pa), (wb, pb)) in a.iter().zip(&b) {
+        assert!(wa.is_finite() && pa.is_finite());
+        dw = dw.max((wa - wb).abs());
+        dpm = dpm.max((pa - pb).abs());
+    }
+    println!("t_ch = 0.3 ms: max |Δω| = {dw:e} pu, max |Δp_m| = {dpm:e} pu vs a 25 µs step");
+    // the governor has responded (the load step is felt), and both runs agree
+    let (w_end, pm_end) = a[a.len() - 1];
+    assert!(
+        w_end < 1.0 - 1e-4 && pm_end > a[0].1 + 1e-3,
+        "ω {w_end}, p_m {pm_end}"
+    );
+    assert!(dw < 1e-9 && dpm < 1e-7, "Δω {dw:e}, Δp_m {dpm:e}");
+}
+
+#[test]
+fn default_cases_keep_the_largest_internal_step() {
+    for name in Case::builtin_names() {
+        let g = Grid::new(&Case::builtin(name).unwrap()).unwrap();
+        assert_eq!(g.internal_step(), fmu_grid::MAX_INTERNAL_STEP, "{name}");
+        assert!(g.internal_step_note().is_none(), "{name}");
+    }
+}
+
+#[test]
+fn too_small_time_constant_is_refused_naming_the_parameter() {
+    let e = Grid::new(&ieee9_with_t_ch(1e-6)).unwrap_err();
+    assert!(
+        matches!(e, fmu_grid::GridError::TimeConstantTooSmall { ref parameter, min }
+            if parameter.starts_with("machine[2].governor.t_ch = 0.000001 s")
+                && min == fmu_grid::MIN_INTERNAL_STEP * fmu_grid::STEPS_PER_TIME_CONSTANT),
+        "{e:?}"
+    );
+    let text = e.to_string();
+    assert!(
+        text.contains("machine[2].governor.t_ch") && text.contains("below"),
+        "{text}"
+    );
+    // an exciter and the PCC filter are checked the same way
+    let mut case = Case::builtin("ieee9").unwrap();
+    if let Some(fmu_grid::case::Exciter::IeeeT1 { ta, .. }) = &mut case.machines[2].exciter {
+        *ta = 1e-5;
+    }
+    let e = Grid::new(&case).unwrap_err().to_string();
+    assert!(e.contains("machine[3].exciter.ta"), "{e}");
+    let mut case = Case::builtin("ieee9").unwrap();
+    case.pcc.as_mut().unwrap().f_filter_t = 1e-5;
+    let e = Grid::new(&case).unwrap_err().to_string();
+    assert!(e.contains("pcc.f_filter_t"), "{e}");
+}
+
+#[test]
+fn tripped_machine_is_out_of_service_and_runs_isolated() {
+    let case = Case::builtin("ieee9").unwrap();
+    let mut g = Grid::new(&case).unwrap();
+    g.add_event(Event::GeneratorTrip {
+        time: 0.5,
+        machine: 3,
+    })
+    .unwrap();
+    let h_of = |j: usize| case.machines[j].h; // ieee9 gives H on the system base
+    let h = 0.01;
+    let mut omega3 = Vec::new();
+    for i in 0..2000 {
+        g.step(i as f64 * h, h).unwrap();
+        let o = g.outputs();
+        let tripped = o.t > 0.5 - 1e-9; // the trip fires at the end of the step reaching 0.5 s
+        assert_eq!(o.sg[2].in_service, !tripped, "t = {}", o.t);
+        assert!(o.sg[0].in_service && o.sg[1].in_service);
+        // COI over the machines in service only
+        let (hw, hs) =
+            o.sg.iter()
+                .enumerate()
+                .filter(|(_, m)| m.in_service)
+                .fold((0.0, 0.0), |(a, b), (j, m)| {
+                    (a + h_of(j) * m.omega, b + h_of(j))
+                });
+        assert!((o.coi_f - hw / hs).abs() < 1e-12, "t = {}", o.t);
+        if tripped {
+            assert!(o.sg[2].p == 0.0 && o.sg[2].q == 0.0 && o.sg[2].pe == 0.0);
+            omega3.push((o.t, o.sg[2].omega, o.coi_f));
+        }
+    }
+    // The turbine trips with the breaker: no mechanical power, and the rotor coasts from its
+    // speed at the trip through its damping alone (no torque: dω/dt = -D Δω / 2H).
+    let d3 = case.machines[2].d;
+    let (t0, w0, _) = omega3[0];
+    for &(t, w, _) in &omega3 {
+        let coast = 1.0 + (w0 - 1.0) * (-d3 * (t - t0) / (2.0 * h_of(2))).exp();
+        assert!(
+            (w - coast).abs() < 1e-6,
+            "t = {t}: ω3 {w}, coasting {coast}"
+        );
+    }
+    let (_, _, coi_1s) = omega3[50];
+    assert!(coi_1s < 1.0, "the grid lost a generator: coi {coi_1s}");
+    let o = g.outputs();
+    assert_eq!(o.sg[2].pm, 0.0, "p_m after the trip");
 }

@@ -1,6 +1,7 @@
 //! DVPP operator FMU: online ADPF dc gains for every DER and the desired aggregate response.
 //!
-//! Centrally, at every communication step (paper §III, "online adaptation of LPF dc gains"):
+//! Centrally, at every communication step (the paper's online adaptation of the low-pass dc
+//! gains, section III; as implemented: `docs/control.md` §6):
 //! - active dc gains `μ_p` of the low-pass units proportional to their available power, bounded
 //!   below by `mu_min` for grid-forming units (a grid-forming unit cannot have zero p-f
 //!   participation) and renormalized, so `Σ μ_p = 1` over the low-pass units;
@@ -13,6 +14,8 @@
 //!
 //! A DER split into a grid-forming and a grid-following part (case study II) appears as two
 //! entries whose `share` (ε and 1 - ε) scales its availability and its rating.
+
+pub mod ports;
 
 use dvpp_control::adaptation::{reactive_capacity, renormalize_with_floor};
 use dvpp_control::{Hold, LtiSimulator, TDes};
@@ -333,7 +336,7 @@ impl Model for Operator {
         let s_base = v.real(Spec::parameter("S_base", 100.0, "MVA", "system base power").min(1e-3));
         let s_dvpp = v.real(
             Spec::parameter(
-                "S_dvpp",
+                ports::S_DVPP,
                 96.0,
                 "MVA",
                 "DVPP base power T_des is specified on",
@@ -341,12 +344,19 @@ impl Model for Operator {
             .min(1e-3),
         );
         let h = v.real(
-            Spec::parameter("Tdes.H", 5.55, "s", "virtual inertia of T_pf = 1/(H s + D)").min(1e-6),
+            Spec::parameter(
+                ports::TDES_H,
+                5.55,
+                "s",
+                "virtual inertia of T_pf = 1/(H s + D)",
+            )
+            .min(1e-6),
         );
         let d = v.real(
-            Spec::parameter("Tdes.D", 33.33, "pu", "damping of T_pf = 1/(H s + D)").min(1e-6),
+            Spec::parameter(ports::TDES_D, 33.33, "pu", "damping of T_pf = 1/(H s + D)").min(1e-6),
         );
-        let dq = v.real(Spec::parameter("Tdes.Dq", 0.01, "pu", "q-v droop: T_qv = Dq").min(1e-9));
+        let dq =
+            v.real(Spec::parameter(ports::TDES_DQ, 0.01, "pu", "q-v droop: T_qv = Dq").min(1e-9));
         let mu_min = v.real(
             Spec::parameter(
                 "mu_min",
@@ -380,12 +390,11 @@ impl Model for Operator {
 
         let mut ders = Vec::with_capacity(config.ders.len());
         for (k, entry) in config.ders.iter().enumerate() {
-            let n = |s: &str| format!("der[{}].{s}", k + 1);
             let who = format!("DER {} ({})", k + 1, entry.name);
             ders.push(DerVars {
                 s_rated: v.real(
                     Spec::parameter(
-                        &n("S_rated"),
+                        &ports::der_s_rated(k + 1),
                         entry.s_rated,
                         "MVA",
                         &format!("converter rating of {who}"),
@@ -393,13 +402,13 @@ impl Model for Operator {
                     .min(1e-3),
                 ),
                 p_avail: v.real(Spec::input(
-                    &n("P_avail"),
+                    &ports::der_p_avail(k + 1),
                     entry.s_rated / 200.0,
                     "pu",
                     &format!("available active power of {who}, on S_base"),
                 )),
                 p: v.real(Spec::input(
-                    &n("p"),
+                    &ports::der_p(k + 1),
                     0.0,
                     "pu",
                     &format!("active power of {who}, on S_base (for its PQ capability)"),
@@ -409,30 +418,37 @@ impl Model for Operator {
                 mu_p_lpf: Vec::new(),
             });
             v.real(Spec::input(
-                &n("q"),
+                &ports::der_q(k + 1),
                 0.0,
                 "pu",
                 &format!("reactive power of {who}, on S_base (monitoring)"),
             ));
         }
         let deps: Vec<String> = (1..=config.ders.len())
-            .flat_map(|k| [format!("der[{k}].P_avail"), format!("der[{k}].p")])
+            .flat_map(|k| [ports::der_p_avail(k), ports::der_p(k)])
             .collect();
         let deps: Vec<&str> = deps.iter().map(String::as_str).collect();
         for (k, entry) in config.ders.iter().enumerate() {
-            let n = |s: &str| format!("der[{}].{s}", k + 1);
             let who = format!("DER {} ({})", k + 1, entry.name);
             if entry.role == Role::LowPass {
                 ders[k].mu_p = Some(
                     v.real(
-                        Spec::output(&n("mu_p"), "1", &format!("active ADPF dc gain of {who}"))
-                            .initial_dependencies(&deps),
+                        Spec::output(
+                            &ports::der_mu_p(k + 1),
+                            "1",
+                            &format!("active ADPF dc gain of {who}"),
+                        )
+                        .initial_dependencies(&deps),
                     ),
                 );
             }
             ders[k].mu_q = v.real(
-                Spec::output(&n("mu_q"), "1", &format!("reactive ADPF dc gain of {who}"))
-                    .initial_dependencies(&deps),
+                Spec::output(
+                    &ports::der_mu_q(k + 1),
+                    "1",
+                    &format!("reactive ADPF dc gain of {who}"),
+                )
+                .initial_dependencies(&deps),
             );
             if entry.role == Role::Complement {
                 ders[k].mu_p_lpf = lpf
@@ -445,7 +461,7 @@ impl Model for Operator {
                             config.ders[l].name
                         );
                         v.real(
-                            Spec::output(&n(&format!("mu_p_lpf[{}]", j + 1)), "1", &what)
+                            Spec::output(&ports::der_mu_p_lpf(k + 1, j + 1), "1", &what)
                                 .initial_dependencies(&deps),
                         )
                     })
@@ -469,26 +485,41 @@ impl Model for Operator {
             rate_limit,
             delay,
             ders,
-            pcc_p: pcc(v, "pcc.p", 0.0, "DVPP active power at the PCC, on S_base"),
-            pcc_q: pcc(v, "pcc.q", 0.0, "DVPP reactive power at the PCC, on S_base"),
-            pcc_f: pcc(v, "pcc.f", 1.0, "PCC frequency, pu of f_nom"),
-            pcc_v: pcc(v, "pcc.v", 1.0, "PCC voltage magnitude"),
+            pcc_p: pcc(
+                v,
+                ports::PCC_P,
+                0.0,
+                "DVPP active power at the PCC, on S_base",
+            ),
+            pcc_q: pcc(
+                v,
+                ports::PCC_Q,
+                0.0,
+                "DVPP reactive power at the PCC, on S_base",
+            ),
+            pcc_f: pcc(v, ports::PCC_F, 1.0, "PCC frequency, pu of f_nom"),
+            pcc_v: pcc(v, ports::PCC_V, 1.0, "PCC voltage magnitude"),
             ref_df: out(
                 v,
-                "ref.df",
+                ports::REF_DF,
                 "pu",
                 "desired frequency deviation -T_pf Δp_pcc, pu of f_nom",
             ),
-            ref_dv: out(v, "ref.dv", "pu", "desired voltage deviation -T_qv Δq_pcc"),
+            ref_dv: out(
+                v,
+                ports::REF_DV,
+                "pu",
+                "desired voltage deviation -T_qv Δq_pcc",
+            ),
             err_df: out(
                 v,
-                "err.df",
+                ports::ERR_DF,
                 "pu",
                 "measured minus desired frequency deviation",
             ),
             err_dv: out(
                 v,
-                "err.dv",
+                ports::ERR_DV,
                 "pu",
                 "measured minus desired voltage deviation",
             ),

@@ -36,7 +36,8 @@ pub const VARIANTS: &[Variant] = &[
         id: "dvpp_grid",
         name: "ieee9",
         config: r#"# The IEEE 9-bus base system: three governed machines, no DER slot, PCC = SG2's output.
-# Event 1 is the 28 MW load step at bus 5 of issue 5's evidence, off by default
+# Event 1 is the 28 MW load step at bus 5 that the grid tests use for the base system's
+# frequency response (nadir, RoCoF, settling, droop check), off by default
 # (set event[1].enabled = true to run it).
 [model]
 case = "ieee9"

@@ -1,8 +1,12 @@
 //! Scenarios: one TOML file per study (grid case, `T_des`, DERs, events, experiment) bundled into
 //! `dist/<scenario>/`: one FMU per component with the scenario's values as start values, and an
-//! SSP system `<scenario>.ssp` that wires them by the interface contract.
+//! SSP system `<scenario>.ssp` that wires them by the signal contract (`docs/contract.md`).
 
 use dvpp_cosim::ssp;
+use fmu_der::ports as der;
+use fmu_grid::ports as grid;
+use fmu_operator::ports as op;
+use fmu_operator::{Form, Role};
 use model_description::{BaseType, Causality, ModelDescription};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -129,297 +133,439 @@ fn start_of(md: &ModelDescription, name: &str) -> Option<f64> {
     md.variable(name)?.start_text()?.parse().ok()
 }
 
+/// The component names of the grid and the operator (a DER's is its scenario name).
+const GRID: &str = "grid";
+const OPERATOR: &str = "operator";
+
+/// Package and model identifier of each FMU kind.
+const GRID_FMU: (&str, &str) = ("fmu-grid", "dvpp_grid");
+const DER_FMU: (&str, &str) = ("fmu-der", "dvpp_der");
+const OPERATOR_FMU: (&str, &str) = ("fmu-operator", "dvpp_operator");
+
 /// The operator role of a DER from its p-f ADPF kind (`adpf.p.kind`).
-fn role_of(md: &ModelDescription, der: &str) -> Result<&'static str, String> {
-    let kind = start_of(md, "adpf.p.kind").ok_or(format!("DER '{der}': no adpf.p.kind"))?;
-    Ok(match kind as i64 {
-        0 | 1 => "low_pass",
-        2 => "high_pass",
-        3 => "band_pass",
-        4 => "complement",
+fn role_of(md: &ModelDescription, der: &str) -> Result<Role, String> {
+    let kind = start_of(md, der::ADPF_P_KIND).ok_or(format!("DER '{der}': no adpf.p.kind"))?;
+    Ok(match kind as i32 {
+        fmu_der::kind::STATIC | fmu_der::kind::LOW_PASS => Role::LowPass,
+        fmu_der::kind::HIGH_PASS => Role::HighPass,
+        fmu_der::kind::BAND_PASS => Role::BandPass,
+        fmu_der::kind::COMPLEMENT => Role::Complement,
         k => return Err(format!("DER '{der}': unknown adpf.p.kind {k}")),
     })
 }
 
-/// Bundle the scenario at `path` into `out_dir` and write `<name>.ssp` there.
-pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<PathBuf, String> {
-    let name = name_of(path)?;
-    let sc = Scenario::read(path)?;
-    let here = |e: String| format!("{}: {e}", path.display());
-    std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
-    for d in &sc.der {
-        if ["grid", "operator"].contains(&d.name.as_str())
-            || sc.der.iter().filter(|x| x.name == d.name).count() > 1
-            || d.name.is_empty()
-            || !d
-                .name
-                .chars()
-                .all(|c| c.is_ascii_alphanumeric() || c == '_')
-        {
+/// The `[model]` of a DER's FMU: its preset.
+fn der_model(spec: &DerSpec) -> Table {
+    let mut model = Table::new();
+    if let Some(p) = &spec.preset {
+        model.insert("preset".into(), Value::String(p.clone()));
+    }
+    model
+}
+
+/// A value of the operator's configuration (`Role`, `Form`) as its TOML string.
+fn toml_of<T: serde::Serialize>(x: T) -> Result<Value, String> {
+    Value::try_from(x).map_err(|e| e.to_string())
+}
+
+/// One bundling: the scenario, where it goes, and the bundler that makes each FMU.
+struct Job<'a, 'b> {
+    path: &'a Path,
+    name: String,
+    sc: Scenario,
+    out_dir: &'a Path,
+    bundle_one: &'a mut Bundler<'b>,
+}
+
+/// A bundled component: its name, model description and start values.
+struct Unit {
+    name: String,
+    md: ModelDescription,
+    start: Table,
+}
+
+/// The grid step's result: the case and the power-flow point the other units start from.
+struct GridUnit {
+    unit: Unit,
+    case: fmu_grid::Case,
+    pf: fmu_grid::Outputs,
+}
+
+/// A bundled DER and what its wiring depends on.
+struct DerUnit {
+    unit: Unit,
+    /// 1-based slot in the grid (and entry in the operator).
+    slot: usize,
+    forming: bool,
+    role: Role,
+}
+
+impl Job<'_, '_> {
+    /// `e` prefixed with the scenario file.
+    fn here(&self, e: String) -> String {
+        format!("{}: {e}", self.path.display())
+    }
+
+    /// Bundle the FMU of `(package, id)` as `component` with the given `[model]` and start values.
+    fn build(
+        &mut self,
+        (package, id): (&str, &str),
+        component: &str,
+        model: Table,
+        start: &Table,
+        files: Vec<PathBuf>,
+    ) -> Result<ModelDescription, String> {
+        (self.bundle_one)(&Build {
+            package,
+            id,
+            staging: format!("{}-{component}", self.name),
+            config: config_text(&self.sc.description, model, start)?,
+            files,
+            out: self.out_dir.join(format!("{component}.fmu")),
+        })
+    }
+
+    /// DER names are component names: unique, not those of the grid or the operator, plain.
+    fn check_der_names(&self) -> Result<(), String> {
+        let ders = &self.sc.der;
+        for d in ders {
+            if [GRID, OPERATOR].contains(&d.name.as_str())
+                || ders.iter().filter(|x| x.name == d.name).count() > 1
+                || d.name.is_empty()
+                || !d
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_')
+            {
+                return Err(self.here(format!(
+                    "DER name '{}' must be unique, not 'grid' or 'operator', and made of letters, digits and _",
+                    d.name
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The grid: its configuration, and the power-flow point the other units start from.
+    fn grid(&mut self) -> Result<GridUnit, String> {
+        let here = |e: String| self.here(e);
+        let spec = &self.sc.grid;
+        let mut model = Table::new();
+        let mut files = Vec::new();
+        match (&spec.case, &spec.case_file) {
+            (Some(c), None) => {
+                model.insert("case".into(), Value::String(c.clone()));
+            }
+            (None, Some(f)) => {
+                let file = self.path.parent().unwrap_or(Path::new(".")).join(f);
+                let base = file
+                    .file_name()
+                    .and_then(|s| s.to_str())
+                    .ok_or(here(format!("case_file {}: not a file", f.display())))?;
+                model.insert("case_file".into(), Value::String(base.into()));
+                files.push(file);
+            }
+            _ => return Err(here("[grid] needs one of `case` or `case_file`".into())),
+        }
+        if let Some(t) = spec.pcc_f_filter_t {
+            model.insert("pcc_f_filter_t".into(), real(t));
+        }
+        if !spec.event.is_empty() {
+            let events = spec.event.iter().cloned().map(Value::Table).collect();
+            model.insert("event".into(), Value::Array(events));
+        }
+        let staging = self.out_dir.join(".grid-resources");
+        let _ = std::fs::remove_dir_all(&staging);
+        std::fs::create_dir_all(&staging).map_err(|e| e.to_string())?;
+        for f in &files {
+            std::fs::copy(f, staging.join(f.file_name().expect("file")))
+                .map_err(|e| here(format!("case_file {}: {e}", f.display())))?;
+        }
+        let config: fmu_grid::GridConfig = Value::Table(model.clone())
+            .try_into()
+            .map_err(|e| here(format!("[grid]: {e}")))?;
+        let case = config.load_case(Some(&staging)).map_err(here)?;
+        let _ = std::fs::remove_dir_all(&staging);
+        let pf = fmu_grid::Grid::new(&case)
+            .map_err(|e| here(format!("grid: {e}")))?
+            .outputs();
+        if case.ders.len() != self.sc.der.len() {
             return Err(here(format!(
-                "DER name '{}' must be unique, not 'grid' or 'operator', and made of letters, digits and _",
-                d.name
+                "the grid case has {} DER slots but the scenario lists {} DERs",
+                case.ders.len(),
+                self.sc.der.len()
             )));
         }
-    }
-
-    // The grid: its configuration, and the power-flow point the other units start from.
-    let mut grid_model = Table::new();
-    let mut files = Vec::new();
-    match (&sc.grid.case, &sc.grid.case_file) {
-        (Some(c), None) => {
-            grid_model.insert("case".into(), Value::String(c.clone()));
-        }
-        (None, Some(f)) => {
-            let file = path.parent().unwrap_or(Path::new(".")).join(f);
-            let base = file
-                .file_name()
-                .and_then(|s| s.to_str())
-                .ok_or(here(format!("case_file {}: not a file", f.display())))?;
-            grid_model.insert("case_file".into(), Value::String(base.into()));
-            files.push(file);
-        }
-        _ => return Err(here("[grid] needs one of `case` or `case_file`".into())),
-    }
-    if let Some(t) = sc.grid.pcc_f_filter_t {
-        grid_model.insert("pcc_f_filter_t".into(), real(t));
-    }
-    if !sc.grid.event.is_empty() {
-        let events = sc.grid.event.iter().cloned().map(Value::Table).collect();
-        grid_model.insert("event".into(), Value::Array(events));
-    }
-    let staging = out_dir.join(".grid-resources");
-    let _ = std::fs::remove_dir_all(&staging);
-    std::fs::create_dir_all(&staging).map_err(|e| e.to_string())?;
-    for f in &files {
-        std::fs::copy(f, staging.join(f.file_name().expect("file")))
-            .map_err(|e| here(format!("case_file {}: {e}", f.display())))?;
-    }
-    let grid_config: fmu_grid::GridConfig = Value::Table(grid_model.clone())
-        .try_into()
-        .map_err(|e| here(format!("[grid]: {e}")))?;
-    let case = grid_config.load_case(Some(&staging)).map_err(here)?;
-    let _ = std::fs::remove_dir_all(&staging);
-    let pf = fmu_grid::Grid::new(&case)
-        .map_err(|e| here(format!("grid: {e}")))?
-        .outputs();
-    if case.ders.len() != sc.der.len() {
-        return Err(here(format!(
-            "the grid case has {} DER slots but the scenario lists {} DERs",
-            case.ders.len(),
-            sc.der.len()
-        )));
-    }
-    let grid_md = bundle_one(&Build {
-        package: "fmu-grid",
-        id: "dvpp_grid",
-        staging: format!("{name}-grid"),
-        config: config_text(&sc.description, grid_model, &sc.grid.start)?,
-        files,
-        out: out_dir.join("grid.fmu"),
-    })?;
-
-    // T_des, shared by the operator and the DERs.
-    let mut tdes = Table::new();
-    if let Some(d) = &sc.dvpp {
-        tdes.insert("S_dvpp".into(), real(d.s_dvpp));
-        tdes.insert("Tdes.H".into(), real(d.h));
-        tdes.insert("Tdes.D".into(), real(d.d));
-        tdes.insert("Tdes.Dq".into(), real(d.dq));
-    }
-
-    // The DERs: preset, mode from the slot kind, the power-flow point as input start values.
-    let mut ders: Vec<(Table, Table)> = Vec::new();
-    for (k, d) in sc.der.iter().enumerate() {
-        let mut model = Table::new();
-        if let Some(p) = &d.preset {
-            model.insert("preset".into(), Value::String(p.clone()));
-        }
-        let mut start = tdes.clone();
-        let slot = &case.ders[k];
-        let forming = slot.kind == fmu_grid::DerKind::GridForming;
-        start.insert("mode".into(), Value::Integer(if forming { 1 } else { 2 }));
-        // The slot's rating and impedance, so that E∠θ starts behind the grid's own impedance.
-        let o = &pf.der[k];
-        for (n, x) in [
-            ("S_rated", slot.rating_mva),
-            ("R_f", slot.r),
-            ("X_f", slot.x),
-            ("p", o.p),
-            ("q", o.q),
-            ("v", o.v),
-            ("v_angle", o.v_angle),
-        ] {
-            start.insert(n.into(), real(x));
-        }
-        start.extend(d.start.clone());
-        ders.push((model, start));
-    }
-    let bundle_der = |k: usize, (model, start): &(Table, Table), b: &mut Bundler| {
-        b(&Build {
-            package: "fmu-der",
-            id: "dvpp_der",
-            staging: format!("{name}-{}", sc.der[k].name),
-            config: config_text(&sc.description, model.clone(), start)?,
-            files: Vec::new(),
-            out: out_dir.join(format!("{}.fmu", sc.der[k].name)),
+        let start = self.sc.grid.start.clone();
+        let md = self.build(GRID_FMU, GRID, model, &start, files)?;
+        Ok(GridUnit {
+            unit: Unit {
+                name: GRID.into(),
+                md,
+                start,
+            },
+            case,
+            pf,
         })
-    };
-    let mut mds = Vec::with_capacity(ders.len());
-    for (k, d) in ders.iter().enumerate() {
-        mds.push(bundle_der(k, d, bundle_one)?);
-    }
-    let roles: Vec<&str> = (0..ders.len())
-        .map(|k| role_of(&mds[k], &sc.der[k].name))
-        .collect::<Result<_, _>>()?;
-    // A complement unit closes the low-pass units of this scenario: their time constants.
-    let lpf: Vec<usize> = (0..ders.len())
-        .filter(|&k| roles[k] == "low_pass")
-        .collect();
-    for k in 0..ders.len() {
-        if roles[k] != "complement" {
-            continue;
-        }
-        let mut extra = Table::new();
-        extra.insert("adpf.p.n_lpf".into(), Value::Integer(lpf.len() as i64));
-        for (j, &l) in lpf.iter().enumerate() {
-            let md = &mds[l];
-            let tau = start_of(md, "adpf.p.tau").unwrap_or(0.0);
-            let order = start_of(md, "adpf.p.order").unwrap_or(1.0);
-            extra.insert(format!("adpf.p.lpf[{}].tau", j + 1), real(tau));
-            extra.insert(
-                format!("adpf.p.lpf[{}].order", j + 1),
-                Value::Integer(order as i64),
-            );
-        }
-        // The scenario's own values win.
-        for (key, v) in extra {
-            ders[k].1.entry(key).or_insert(v);
-        }
-        mds[k] = bundle_der(k, &ders[k], bundle_one)?;
     }
 
-    let mut components = vec![component("grid", &grid_md, &sc.grid.start)?];
-    let mut connections = Vec::new();
-    let link = |a: &str, x: &str, b: &str, y: String| ssp::Connection {
-        start_element: a.into(),
-        start_connector: x.into(),
-        end_element: b.into(),
-        end_connector: y,
-        transformation: None,
-    };
-    for (k, d) in sc.der.iter().enumerate() {
-        let slot = k + 1;
-        components.push(component(&d.name, &mds[k], &ders[k].1)?);
-        for v in ["p", "q", "v", "v_angle"] {
-            connections.push(link("grid", &format!("der[{slot}].{v}"), &d.name, v.into()));
+    /// `T_des`, shared by the operator and the DERs.
+    fn tdes(&self) -> Table {
+        let mut tdes = Table::new();
+        if let Some(d) = &self.sc.dvpp {
+            tdes.insert(der::S_DVPP.into(), real(d.s_dvpp));
+            tdes.insert(der::TDES_H.into(), real(d.h));
+            tdes.insert(der::TDES_D.into(), real(d.d));
+            tdes.insert(der::TDES_DQ.into(), real(d.dq));
         }
-        let drive: [&str; 2] = if case.ders[k].kind == fmu_grid::DerKind::GridForming {
-            ["theta", "E"]
-        } else {
-            ["p_ref", "q_ref"]
-        };
-        for v in drive {
-            connections.push(link(&d.name, v, "grid", format!("der[{slot}].{v}")));
-        }
+        tdes
     }
 
-    if let Some(op) = &sc.operator {
+    /// The DERs: preset, mode from the slot kind, the power-flow point as input start values;
+    /// then every complement unit again, with the time constants of the low-pass units it closes.
+    fn ders(&mut self, grid: &GridUnit, tdes: &Table) -> Result<Vec<DerUnit>, String> {
+        let mut ders = Vec::with_capacity(self.sc.der.len());
+        for k in 0..self.sc.der.len() {
+            let spec = &self.sc.der[k];
+            let model = der_model(spec);
+            let mut start = tdes.clone();
+            let slot = &grid.case.ders[k];
+            let forming = slot.kind == fmu_grid::DerKind::GridForming;
+            let mode = if forming {
+                fmu_der::GRID_FORMING
+            } else {
+                fmu_der::GRID_FOLLOWING
+            };
+            start.insert(der::MODE.into(), Value::Integer(mode.into()));
+            // The slot's rating and impedance, so that E∠θ starts behind the grid's own impedance.
+            let o = &grid.pf.der[k];
+            for (n, x) in [
+                (der::S_RATED, slot.rating_mva),
+                (der::R_F, slot.r),
+                (der::P, o.p),
+                (der::Q, o.q),
+                (der::V, o.v),
+                (der::V_ANGLE, o.v_angle),
+            ] {
+                start.insert(n.into(), real(x));
+            }
+            // A grid-following slot may leave its impedance out (the unit injects current).
+            if let Some(x) = slot.x {
+                start.insert(der::X_F.into(), real(x));
+            }
+            start.extend(spec.start.clone());
+            let name = spec.name.clone();
+            let md = self.build(DER_FMU, &name, model, &start, Vec::new())?;
+            let role = role_of(&md, &name)?;
+            ders.push(DerUnit {
+                unit: Unit { name, md, start },
+                slot: k + 1,
+                forming,
+                role,
+            });
+        }
+        // A complement unit closes the low-pass units of this scenario: their time constants.
+        let lpf: Vec<(f64, i64)> = ders
+            .iter()
+            .filter(|d| d.role == Role::LowPass)
+            .map(|d| {
+                let tau = start_of(&d.unit.md, der::ADPF_P_TAU).unwrap_or(0.0);
+                let order = start_of(&d.unit.md, der::ADPF_P_ORDER).unwrap_or(1.0);
+                (tau, order as i64)
+            })
+            .collect();
+        for (k, d) in ders.iter_mut().enumerate() {
+            if d.role != Role::Complement {
+                continue;
+            }
+            let mut extra = Table::new();
+            extra.insert(der::ADPF_P_N_LPF.into(), Value::Integer(lpf.len() as i64));
+            for (j, &(tau, order)) in lpf.iter().enumerate() {
+                extra.insert(der::adpf_p_lpf_tau(j + 1), real(tau));
+                extra.insert(der::adpf_p_lpf_order(j + 1), Value::Integer(order));
+            }
+            // The scenario's own values win.
+            for (key, v) in extra {
+                d.unit.start.entry(key).or_insert(v);
+            }
+            let model = der_model(&self.sc.der[k]);
+            d.unit.md = self.build(DER_FMU, &d.unit.name, model, &d.unit.start, Vec::new())?;
+        }
+        Ok(ders)
+    }
+
+    /// The operator: one entry per DER (role, form, rating), the power-flow point as start values.
+    fn operator(
+        &mut self,
+        grid: &GridUnit,
+        ders: &[DerUnit],
+        tdes: &Table,
+    ) -> Result<Unit, String> {
         let mut entries = Vec::new();
         let mut start = tdes.clone();
-        for (k, d) in sc.der.iter().enumerate() {
-            let md = &mds[k];
+        for d in ders {
+            let md = &d.unit.md;
             let mut e = Table::new();
-            e.insert("name".into(), Value::String(d.name.clone()));
-            e.insert("role".into(), Value::String(roles[k].into()));
-            let form = if case.ders[k].kind == fmu_grid::DerKind::GridForming {
-                "grid_forming"
+            e.insert("name".into(), Value::String(d.unit.name.clone()));
+            e.insert("role".into(), toml_of(d.role)?);
+            let form = if d.forming {
+                Form::GridForming
             } else {
-                "grid_following"
+                Form::GridFollowing
             };
-            e.insert("form".into(), Value::String(form.into()));
-            let s_rated = start_of(md, "S_rated").ok_or(format!("DER '{}': no S_rated", d.name))?;
+            e.insert("form".into(), toml_of(form)?);
+            let s_rated =
+                start_of(md, der::S_RATED).ok_or(format!("DER '{}': no S_rated", d.unit.name))?;
             e.insert("s_rated".into(), real(s_rated));
             entries.push(Value::Table(e));
-            let slot = k + 1;
-            let avail = start_of(md, "P_avail0").unwrap_or(0.0);
-            start.insert(format!("der[{slot}].P_avail"), real(avail));
-            start.insert(format!("der[{slot}].p"), real(pf.der[k].p));
-            start.insert(format!("der[{slot}].q"), real(pf.der[k].q));
+            let k = d.slot;
+            let avail = start_of(md, der::P_AVAIL0).unwrap_or(0.0);
+            start.insert(op::der_p_avail(k), real(avail));
+            start.insert(op::der_p(k), real(grid.pf.der[k - 1].p));
+            start.insert(op::der_q(k), real(grid.pf.der[k - 1].q));
         }
+        let pcc = &grid.pf.pcc;
         for (n, x) in [
-            ("pcc.p", pf.pcc.p),
-            ("pcc.q", pf.pcc.q),
-            ("pcc.f", pf.pcc.f),
-            ("pcc.v", pf.pcc.v),
+            (op::PCC_P, pcc.p),
+            (op::PCC_Q, pcc.q),
+            (op::PCC_F, pcc.f),
+            (op::PCC_V, pcc.v),
         ] {
             start.insert(n.into(), real(x));
         }
-        start.extend(op.start.clone());
+        start.extend(
+            self.sc
+                .operator
+                .as_ref()
+                .map_or(Table::new(), |o| o.start.clone()),
+        );
         let mut model = Table::new();
         model.insert("ders".into(), Value::Array(entries));
-        let md = bundle_one(&Build {
-            package: "fmu-operator",
-            id: "dvpp_operator",
-            staging: format!("{name}-operator"),
-            config: config_text(&sc.description, model, &start)?,
-            files: Vec::new(),
-            out: out_dir.join("operator.fmu"),
-        })?;
-        components.push(component("operator", &md, &start)?);
-        for (k, d) in sc.der.iter().enumerate() {
-            let slot = k + 1;
-            connections.push(link(
-                &d.name,
-                "P_avail",
-                "operator",
-                format!("der[{slot}].P_avail"),
-            ));
-            for v in ["p", "q"] {
-                connections.push(link(
-                    "grid",
-                    &format!("der[{slot}].{v}"),
-                    "operator",
-                    format!("der[{slot}].{v}"),
-                ));
-            }
-            connections.push(link(
-                "operator",
-                &format!("der[{slot}].mu_q"),
-                &d.name,
-                "mu_q".into(),
-            ));
-            match roles[k] {
-                "low_pass" => connections.push(link(
-                    "operator",
-                    &format!("der[{slot}].mu_p"),
-                    &d.name,
-                    "mu_p".into(),
-                )),
-                "complement" => {
-                    for j in 1..=lpf.len() {
-                        connections.push(link(
-                            "operator",
-                            &format!("der[{slot}].mu_p_lpf[{j}]"),
-                            &d.name,
-                            format!("mu_p_lpf[{j}]"),
-                        ));
-                    }
-                }
-                _ => {}
-            }
-        }
-        for v in ["p", "q", "f", "v"] {
-            connections.push(link(
-                "grid",
-                &format!("pcc.{v}"),
-                "operator",
-                format!("pcc.{v}"),
-            ));
-        }
+        let md = self.build(OPERATOR_FMU, OPERATOR, model, &start, Vec::new())?;
+        Ok(Unit {
+            name: OPERATOR.into(),
+            md,
+            start,
+        })
     }
+}
 
-    // Declare the connected inputs on their components.
+/// One connection: from (component, output) to (component, input).
+type Wire = ((String, String), (String, String));
+
+fn wire(from: &str, output: &str, to: &str, input: &str) -> Wire {
+    ((from.into(), output.into()), (to.into(), input.into()))
+}
+
+/// A wiring rule: the connections it makes for one DER, given the number of low-pass units.
+type DerRule = fn(&DerUnit, usize) -> Vec<Wire>;
+
+/// Grid → DER: the measurements at the DER's slot.
+fn slot_measurements(d: &DerUnit, _: usize) -> Vec<Wire> {
+    let (n, k) = (d.unit.name.as_str(), d.slot);
+    vec![
+        wire(GRID, &grid::der_p(k), n, der::P),
+        wire(GRID, &grid::der_q(k), n, der::Q),
+        wire(GRID, &grid::der_v(k), n, der::V),
+        wire(GRID, &grid::der_v_angle(k), n, der::V_ANGLE),
+    ]
+}
+
+/// DER → grid: what drives its slot (`E∠θ` grid-forming, `p_ref`, `q_ref` grid-following).
+fn slot_drive(d: &DerUnit, _: usize) -> Vec<Wire> {
+    let (n, k) = (d.unit.name.as_str(), d.slot);
+    if d.forming {
+        vec![
+            wire(n, der::THETA, GRID, &grid::der_theta(k)),
+            wire(n, der::E, GRID, &grid::der_e(k)),
+        ]
+    } else {
+        vec![
+            wire(n, der::P_REF, GRID, &grid::der_p_ref(k)),
+            wire(n, der::Q_REF, GRID, &grid::der_q_ref(k)),
+        ]
+    }
+}
+
+/// DER and grid → operator: the DER's availability and its slot's power.
+fn operator_measurements(d: &DerUnit, _: usize) -> Vec<Wire> {
+    let (n, k) = (d.unit.name.as_str(), d.slot);
+    vec![
+        wire(n, der::P_AVAIL, OPERATOR, &op::der_p_avail(k)),
+        wire(GRID, &grid::der_p(k), OPERATOR, &op::der_p(k)),
+        wire(GRID, &grid::der_q(k), OPERATOR, &op::der_q(k)),
+    ]
+}
+
+/// Operator → DER: the dc gains its role takes.
+fn operator_gains(d: &DerUnit, n_lpf: usize) -> Vec<Wire> {
+    let (n, k) = (d.unit.name.as_str(), d.slot);
+    let mut wires = vec![wire(OPERATOR, &op::der_mu_q(k), n, der::MU_Q)];
+    match d.role {
+        Role::LowPass => wires.push(wire(OPERATOR, &op::der_mu_p(k), n, der::MU_P)),
+        Role::Complement => wires.extend(
+            (1..=n_lpf).map(|j| wire(OPERATOR, &op::der_mu_p_lpf(k, j), n, &der::mu_p_lpf(j))),
+        ),
+        Role::HighPass | Role::BandPass => {}
+    }
+    wires
+}
+
+/// Grid → operator: the PCC measurements.
+fn pcc_measurements() -> Vec<Wire> {
+    [
+        (grid::PCC_P, op::PCC_P),
+        (grid::PCC_Q, op::PCC_Q),
+        (grid::PCC_F, op::PCC_F),
+        (grid::PCC_V, op::PCC_V),
+    ]
+    .into_iter()
+    .map(|(from, to)| wire(GRID, from, OPERATOR, to))
+    .collect()
+}
+
+/// Rules per DER of every system, in the order of the connections.
+const DER_RULES: &[DerRule] = &[slot_measurements, slot_drive];
+/// Rules per DER of a system with an operator, after those of `DER_RULES`.
+const OPERATOR_RULES: &[DerRule] = &[operator_measurements, operator_gains];
+
+/// Every connection of the system.
+fn wiring(ders: &[DerUnit], operator: bool) -> Vec<Wire> {
+    let n_lpf = ders.iter().filter(|d| d.role == Role::LowPass).count();
+    let per_der = |rules: &[DerRule]| -> Vec<Wire> {
+        ders.iter()
+            .flat_map(|d| rules.iter().flat_map(move |rule| rule(d, n_lpf)))
+            .collect()
+    };
+    let mut wires = per_der(DER_RULES);
+    if operator {
+        wires.extend(per_der(OPERATOR_RULES));
+        wires.extend(pcc_measurements());
+    }
+    wires
+}
+
+/// The SSP system of `units` wired by `wires`, each connected input declared on its component.
+fn system(
+    name: &str,
+    sc: &Scenario,
+    units: &[Unit],
+    wires: Vec<Wire>,
+) -> Result<ssp::System, String> {
+    let mut components = units
+        .iter()
+        .map(|u| component(&u.name, &u.md, &u.start))
+        .collect::<Result<Vec<_>, _>>()?;
+    let connections: Vec<ssp::Connection> = wires
+        .into_iter()
+        .map(|((a, x), (b, y))| ssp::Connection {
+            start_element: a,
+            start_connector: x,
+            end_element: b,
+            end_connector: y,
+            transformation: None,
+        })
+        .collect();
     for c in &connections {
         let comp = components
             .iter_mut()
@@ -439,21 +585,49 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
             });
         }
     }
-    let system = ssp::System {
-        name: name.clone(),
+    Ok(ssp::System {
+        name: name.into(),
         description: Some(sc.description.clone()),
         components,
         connections,
         start_time: sc.experiment.start,
         stop_time: Some(sc.experiment.stop),
         step_size: Some(sc.experiment.step),
+    })
+}
+
+/// Bundle the scenario at `path` into `out_dir` and write `<name>.ssp` there.
+pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<PathBuf, String> {
+    let name = name_of(path)?;
+    let sc = Scenario::read(path)?;
+    std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
+    let mut job = Job {
+        path,
+        name,
+        sc,
+        out_dir,
+        bundle_one,
     };
+    job.check_der_names()?;
+    let grid = job.grid()?;
+    let tdes = job.tdes();
+    let ders = job.ders(&grid, &tdes)?;
+    let operator = if job.sc.operator.is_some() {
+        Some(job.operator(&grid, &ders, &tdes)?)
+    } else {
+        None
+    };
+    let wires = wiring(&ders, operator.is_some());
+    let mut units = vec![grid.unit];
+    units.extend(ders.into_iter().map(|d| d.unit));
+    units.extend(operator);
+    let system = system(&job.name, &job.sc, &units, wires)?;
     let fmus: Vec<(String, PathBuf)> = system
         .components
         .iter()
         .map(|c| (c.source.clone(), out_dir.join(format!("{}.fmu", c.name))))
         .collect();
-    let out = out_dir.join(format!("{name}.ssp"));
+    let out = out_dir.join(format!("{}.ssp", job.name));
     system
         .write_ssp(&fmus, &out)
         .map_err(|e| format!("{}: {e}", out.display()))?;
@@ -507,4 +681,108 @@ fn component(name: &str, md: &ModelDescription, start: &Table) -> Result<ssp::Co
         connectors,
         parameters,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fmi_export::{describe, Config};
+    use std::collections::BTreeMap;
+
+    /// Bundle `scenario` with the FMUs described in process instead of built: the system, and
+    /// the model description of each component.
+    fn bundled(scenario: &Path) -> (ssp::System, BTreeMap<String, ModelDescription>) {
+        let name = name_of(scenario).unwrap();
+        let dir =
+            std::env::temp_dir().join(format!("xtask-scenario-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let mut mds = BTreeMap::new();
+        let mut one = |b: &Build| -> Result<ModelDescription, String> {
+            let res = dir.join(&b.staging);
+            std::fs::create_dir_all(&res).map_err(|e| e.to_string())?;
+            std::fs::write(res.join(fmi_export::CONFIG_FILE), &b.config)
+                .map_err(|e| e.to_string())?;
+            for f in &b.files {
+                std::fs::copy(f, res.join(f.file_name().unwrap())).map_err(|e| e.to_string())?;
+            }
+            let md = match b.package {
+                "fmu-grid" => describe::<fmu_grid::GridFmu>(&Config::load(&res)?, Some(&res)),
+                "fmu-der" => describe::<fmu_der::Der>(&Config::load(&res)?, Some(&res)),
+                "fmu-operator" => {
+                    describe::<fmu_operator::Operator>(&Config::load(&res)?, Some(&res))
+                }
+                p => Err(format!("unknown package {p}")),
+            }?;
+            // The system only needs the file to exist.
+            std::fs::write(&b.out, b"").map_err(|e| e.to_string())?;
+            let component = b.out.file_stem().unwrap().to_string_lossy().into_owned();
+            mds.insert(component, md.clone());
+            Ok(md)
+        };
+        let ssp = bundle(scenario, &dir, &mut one).unwrap();
+        let system = ssp::read(&ssp).unwrap().system.clone();
+        let _ = std::fs::remove_dir_all(&dir);
+        (system, mds)
+    }
+
+    /// Every connection runs from an output to an input of the model descriptions, and every
+    /// input is driven once: a connector renamed on one side only fails here.
+    fn assert_wired(scenario: &Path, connections: usize) {
+        let (system, mds) = bundled(scenario);
+        assert_eq!(
+            system.connections.len(),
+            connections,
+            "{}",
+            scenario.display()
+        );
+        let mut driven = std::collections::BTreeSet::new();
+        for c in &system.connections {
+            let causality = |component: &str, name: &str| {
+                mds[component]
+                    .variable(name)
+                    .unwrap_or_else(|| panic!("{component} has no variable '{name}'"))
+                    .causality()
+            };
+            let from = (&c.start_element, &c.start_connector);
+            let to = (&c.end_element, &c.end_connector);
+            assert_eq!(causality(from.0, from.1), Causality::Output, "{from:?}");
+            assert_eq!(causality(to.0, to.1), Causality::Input, "{to:?}");
+            assert!(driven.insert(to), "{to:?} driven twice");
+        }
+    }
+
+    #[test]
+    fn shipped_scenarios_wire_outputs_to_inputs() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        // Per DER: 4 measurements, 2 drives, 3 to the operator, mu_q; mu_p of the 2 low-pass
+        // units, their 2 gains to the complement; 4 PCC measurements.
+        assert_wired(&dir.join("case1_load.toml"), 3 * 10 + 2 + 2 + 4);
+        assert_wired(&dir.join("ieee9.toml"), 0);
+    }
+
+    #[test]
+    fn hybrid_dvpp_wires_grid_following_units_and_two_complements() {
+        let dir = std::env::temp_dir().join(format!("xtask-hybrid-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("hybrid.toml");
+        let mut text = String::from(
+            "description = \"hybrid\"\n[experiment]\nstop = 1.0\nstep = 1e-3\n\
+             [grid]\ncase = \"ieee9_hybrid\"\n[dvpp]\nS_dvpp = 96.0\nH = 5.55\nD = 33.33\n\
+             Dq = 0.01\n[operator]\n",
+        );
+        for (name, preset) in [
+            ("wind", "wind"),
+            ("pv", "pv"),
+            ("bess", "bess"),
+            ("wind_gfl", "wind"),
+            ("pv_gfl", "pv"),
+            ("bess_gfl", "bess"),
+        ] {
+            text += &format!("[[der]]\nname = \"{name}\"\npreset = \"{preset}\"\n");
+        }
+        std::fs::write(&path, text).unwrap();
+        // 6 DERs of 10 connections; 4 low-pass mu_p; 2 complements of 4 gains; 4 PCC.
+        assert_wired(&path, 6 * 10 + 4 + 2 * 4 + 4);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }

@@ -1,0 +1,102 @@
+//! Names of the grid FMU's connectors that a system wires: DER slots and the PCC.
+
+/// The input or output `port` of DER slot `k` (1-based): `der[k].port`.
+fn der(k: usize, port: &str) -> String {
+    format!("der[{k}].{port}")
+}
+
+/// Grid-forming slot `k` (1-based), input: internal voltage angle.
+pub fn der_theta(k: usize) -> String {
+    der(k, "theta")
+}
+
+/// Grid-forming slot `k` (1-based), input: internal voltage magnitude.
+pub fn der_e(k: usize) -> String {
+    der(k, "E")
+}
+
+/// Grid-following slot `k` (1-based), input: active power injected.
+pub fn der_p_ref(k: usize) -> String {
+    der(k, "p_ref")
+}
+
+/// Grid-following slot `k` (1-based), input: reactive power injected.
+pub fn der_q_ref(k: usize) -> String {
+    der(k, "q_ref")
+}
+
+/// Slot `k` (1-based), output: active power it injects.
+pub fn der_p(k: usize) -> String {
+    der(k, "p")
+}
+
+/// Slot `k` (1-based), output: reactive power it injects.
+pub fn der_q(k: usize) -> String {
+    der(k, "q")
+}
+
+/// Slot `k` (1-based), output: voltage magnitude at its bus.
+pub fn der_v(k: usize) -> String {
+    der(k, "v")
+}
+
+/// Slot `k` (1-based), output: voltage angle at its bus.
+pub fn der_v_angle(k: usize) -> String {
+    der(k, "v_angle")
+}
+
+/// Output: DVPP active power at the PCC.
+pub const PCC_P: &str = "pcc.p";
+/// Output: DVPP reactive power at the PCC.
+pub const PCC_Q: &str = "pcc.q";
+/// Output: PCC frequency.
+pub const PCC_F: &str = "pcc.f";
+/// Output: PCC voltage magnitude.
+pub const PCC_V: &str = "pcc.v";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::GridFmu;
+    use fmi_export::model_description::{Causality, ModelDescription};
+    use fmi_export::{describe, Config};
+
+    fn described(case: &str) -> ModelDescription {
+        let config = Config::from_toml(&format!("[model]\ncase = \"{case}\"\n")).unwrap();
+        describe::<GridFmu>(&config, None).unwrap()
+    }
+
+    fn assert_port(md: &ModelDescription, name: &str, causality: Causality) {
+        let v = md
+            .variable(name)
+            .unwrap_or_else(|| panic!("'{name}' is not a variable of the grid FMU"));
+        assert_eq!(v.causality(), causality, "'{name}'");
+    }
+
+    #[test]
+    fn names_match_the_declared_variables() {
+        // ieee9_dvpp: grid-forming slots; ieee9_hybrid: grid-following ones as well.
+        for case in ["ieee9_dvpp", "ieee9_hybrid"] {
+            let md = described(case);
+            for p in [PCC_P, PCC_Q, PCC_F, PCC_V] {
+                assert_port(&md, p, Causality::Output);
+            }
+            let mut k = 1;
+            while md.variable(&der_p(k)).is_some() {
+                for p in [der_p(k), der_q(k), der_v(k), der_v_angle(k)] {
+                    assert_port(&md, &p, Causality::Output);
+                }
+                let drive = if md.variable(&der_theta(k)).is_some() {
+                    [der_theta(k), der_e(k)]
+                } else {
+                    [der_p_ref(k), der_q_ref(k)]
+                };
+                for p in drive {
+                    assert_port(&md, &p, Causality::Input);
+                }
+                k += 1;
+            }
+            assert!(k > 1, "{case}: no DER slot found");
+        }
+    }
+}

@@ -1,0 +1,302 @@
+//! The operator's step logic driven in-process through the FMI call paths: dc gains, their
+//! rate limit and delay, the desired aggregate response, and refused configurations and inputs.
+
+use fmi_export::harness::Harness;
+use fmi_export::instance::Phase;
+use fmi_export::{Config, Status};
+use fmu_operator::{Operator, OperatorConfig};
+
+const DT: f64 = 1e-2;
+const MU_P: [&str; 2] = ["der[1].mu_p", "der[2].mu_p"];
+const MU_Q: [&str; 3] = ["der[1].mu_q", "der[2].mu_q", "der[3].mu_q"];
+
+/// The case-study operator (wind, PV low-pass; BESS complement) with `values` set, initialized.
+fn operator(values: &[(&str, f64)]) -> Harness<Operator> {
+    let mut h = Harness::<Operator>::new();
+    h.set_all(values);
+    assert_eq!(h.init(), Status::Ok, "{:#?}", h.log());
+    h
+}
+
+fn close(actual: f64, expected: f64, tol: f64, what: impl std::fmt::Display) {
+    assert!(
+        (actual - expected).abs() <= tol,
+        "{what}: {actual} vs {expected} (difference {:.3e})",
+        actual - expected
+    );
+}
+
+/// Σ μ_p = Σ μ_q = 1, every gain in [0, 1], the complement receives the low-pass gains.
+fn assert_participation(h: &mut Harness<Operator>, when: impl std::fmt::Display) {
+    let p = h.get_many(MU_P);
+    let q = h.get_many(MU_Q);
+    for mu in p.iter().chain(&q) {
+        assert!((0.0..=1.0).contains(mu), "{when}: gain {mu}");
+    }
+    close(p.iter().sum(), 1.0, 1e-12, format_args!("{when}: Σ μ_p"));
+    close(q.iter().sum(), 1.0, 1e-12, format_args!("{when}: Σ μ_q"));
+    assert_eq!(
+        h.get_many(["der[3].mu_p_lpf[1]", "der[3].mu_p_lpf[2]"]),
+        p,
+        "{when}: the complement's gains"
+    );
+    let [sum_p, sum_q] = h.get_many(["check.sum_mu_p", "check.sum_mu_q"]);
+    close(sum_p, 1.0, 1e-12, format_args!("{when}: check.sum_mu_p"));
+    close(sum_q, 1.0, 1e-12, format_args!("{when}: check.sum_mu_q"));
+}
+
+#[test]
+fn the_dc_gains_sum_to_one_at_every_step_while_the_inputs_move() {
+    let mut h = operator(&[("rate_limit", 0.8), ("delay", 0.03)]);
+    assert_participation(&mut h, "initialization");
+    // Availabilities and outputs wander (a fixed pseudo-random sequence), sometimes to zero.
+    let mut x: u64 = 0x2545_f491_4f6c_dd1d;
+    let mut next = || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        (x >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut moved = 0.0_f64;
+    let first = h.get_many(MU_P);
+    for k in 0..500 {
+        if k % 7 == 0 {
+            let zero = next() < 0.1;
+            let avail = [0.5 * next(), if zero { 0.0 } else { 0.7 * next() }];
+            h.set("der[1].P_avail", avail[0]);
+            h.set("der[2].P_avail", avail[1]);
+            for j in 1..=3 {
+                h.set(&format!("der[{j}].p"), 0.5 * next());
+            }
+        }
+        let status = h.do_step(h.time(), DT);
+        assert!(status <= Status::Warning, "{status:?}: {:#?}", h.log());
+        assert_participation(&mut h, format_args!("step {k}"));
+        moved = moved.max((h.get("der[1].mu_p") - first[0]).abs());
+    }
+    assert!(moved > 0.1, "the gains hardly moved: {moved}");
+}
+
+#[test]
+fn an_availability_drop_shifts_the_unit_s_gain_to_the_others() {
+    let mut h = operator(&[
+        ("der[1].P_avail", 0.40),
+        ("der[2].P_avail", 0.60),
+        ("der[1].p", 0.30),
+        ("der[2].p", 0.50),
+    ]);
+    let [wind, pv] = h.get_many(MU_P);
+    close(wind, 0.4, 1e-12, "wind before");
+    close(pv, 0.6, 1e-12, "pv before");
+    h.step(DT);
+    // A cloud: the PV's availability and output fall; the next step moves its share to wind.
+    h.set("der[2].P_avail", 0.2);
+    h.set("der[2].p", 0.15);
+    h.step(DT);
+    let [wind, pv] = h.get_many(MU_P);
+    close(wind, 0.4 / 0.6, 1e-12, "wind after");
+    close(pv, 0.2 / 0.6, 1e-12, "pv after");
+    // Reactive gains follow the PQ headroom sqrt(S² - P²) of every unit (MVA, MW).
+    let [s1, s2, s3] = h.get_many(["der[1].S_rated", "der[2].S_rated", "der[3].S_rated"]);
+    let headroom = [
+        (s1 * s1 - 30.0f64.powi(2)).sqrt(),
+        (s2 * s2 - 15.0f64.powi(2)).sqrt(),
+        s3,
+    ];
+    let total: f64 = headroom.iter().sum();
+    let q = h.get_many(MU_Q);
+    for (k, (mu, c)) in q.iter().zip(headroom).enumerate() {
+        close(*mu, c / total, 1e-12, format_args!("mu_q of DER {}", k + 1));
+    }
+    assert!(h.warnings().is_empty(), "{:?}", h.warnings());
+}
+
+#[test]
+fn a_grid_forming_unit_without_availability_keeps_the_floor() {
+    let mu_min = 0.1;
+    let mut h = operator(&[
+        ("mu_min", mu_min),
+        ("der[1].P_avail", 0.4),
+        ("der[2].P_avail", 0.6),
+    ]);
+    h.set("der[2].P_avail", 0.0);
+    h.step(DT);
+    let [wind, pv] = h.get_many(MU_P);
+    close(pv, mu_min, 1e-15, "pv at the floor");
+    close(wind, 1.0 - mu_min, 1e-15, "wind takes the rest");
+    assert_participation(&mut h, "at the floor");
+    assert!(h.warnings().is_empty(), "{:?}", h.warnings());
+}
+
+#[test]
+fn the_rate_limit_bounds_every_change_and_reaches_the_target_in_change_over_rate() {
+    let (rate, dt) = (0.5, 1e-3);
+    let mut h = operator(&[
+        ("rate_limit", rate),
+        ("der[1].P_avail", 0.5),
+        ("der[2].P_avail", 0.5),
+    ]);
+    h.set("der[2].P_avail", 0.05);
+    let target = 0.5 / 0.55;
+    let change = target - 0.5;
+    let mut previous = h.get_many(MU_P);
+    let mut reached = None;
+    for _ in 0..1000 {
+        h.step(dt);
+        let mu = h.get_many(MU_P);
+        let largest = (mu[0] - previous[0]).abs().max((mu[1] - previous[1]).abs());
+        assert!(
+            largest <= rate * dt * (1.0 + 1e-12),
+            "a gain moved {largest}"
+        );
+        let t = h.time();
+        assert_participation(&mut h, format_args!("t = {t}"));
+        if reached.is_none() && (mu[0] - target).abs() < 1e-12 {
+            reached = Some(h.time());
+        }
+        previous = mu;
+    }
+    let reached = reached.expect("the target was reached");
+    let expected = (change / (rate * dt)).ceil() * dt;
+    close(reached, expected, 1e-9, "time to reach the target");
+}
+
+#[test]
+fn the_delay_holds_the_gains_for_exactly_the_delay() {
+    let (delay, dt) = (0.05, 1e-3);
+    let mut h = operator(&[
+        ("delay", delay),
+        ("der[1].P_avail", 0.5),
+        ("der[2].P_avail", 0.5),
+    ]);
+    for _ in 0..10 {
+        h.step(dt);
+    }
+    let changed_at = h.time();
+    h.set("der[2].P_avail", 0.25);
+    let mut moved = None;
+    for _ in 0..200 {
+        h.step(dt);
+        let wind = h.get("der[1].mu_p");
+        if moved.is_none() && wind != 0.5 {
+            moved = Some(h.time());
+            // No rate limit: the delayed target arrives whole.
+            close(wind, 0.5 / 0.75, 1e-12, "wind after the delay");
+        }
+    }
+    let moved = moved.expect("the gains moved");
+    // The input set at `changed_at` is sampled by the step ending at changed_at + dt.
+    close(moved, changed_at + dt + delay, 1e-9, "first move");
+}
+
+#[test]
+fn ref_df_follows_t_pf_applied_to_the_pcc_power_change() {
+    // Parameters away from the defaults, so the response shows which ones are used.
+    let (hh, d, dq) = (3.0, 20.0, 0.02);
+    let mut h = operator(&[
+        ("Tdes.H", hh),
+        ("Tdes.D", d),
+        ("Tdes.Dq", dq),
+        ("S_dvpp", 80.0),
+        ("pcc.p", 0.5),
+        ("pcc.q", 0.1),
+    ]);
+    h.step(DT);
+    close(h.get("ref.df"), 0.0, 0.0, "no change, no response");
+    let t0 = h.time();
+    h.set("pcc.p", 0.7);
+    h.set("pcc.q", 0.05);
+    h.set("pcc.f", 0.9995);
+    let dp = 0.2 * 100.0 / 80.0;
+    for _ in 0..300 {
+        h.step(DT);
+        let t = h.time() - t0;
+        let [ref_df, ref_dv, err_df] = h.get_many(["ref.df", "ref.dv", "err.df"]);
+        let expected = -dp / d * (1.0 - (-d * t / hh).exp());
+        close(ref_df, expected, 1e-12, format_args!("ref.df at t = {t}"));
+        close(ref_dv, dq * 0.05 * 100.0 / 80.0, 1e-15, "ref.dv");
+        close(err_df, -0.0005 - ref_df, 1e-15, "err.df");
+    }
+}
+
+#[test]
+fn a_split_unit_shares_its_availability_by_its_parts() {
+    // A hybrid DVPP: unit A split into a grid-forming part (ε = 0.3) and a grid-following one.
+    let config = r#"
+        [[model.ders]]
+        name = "a-gfm"
+        role = "low_pass"
+        form = "grid_forming"
+        s_rated = 50.0
+        share = 0.3
+
+        [[model.ders]]
+        name = "a-gfl"
+        role = "low_pass"
+        form = "grid_following"
+        s_rated = 50.0
+        share = 0.7
+
+        [[model.ders]]
+        name = "b"
+        role = "low_pass"
+        form = "grid_following"
+        s_rated = 100.0
+    "#;
+    let mut h = Harness::<Operator>::from_toml(config);
+    for k in 1..=3 {
+        h.set(&format!("der[{k}].P_avail"), 0.4);
+    }
+    h.set("der[3].p", 0.6);
+    assert_eq!(h.init(), Status::Ok);
+    let mu = h.get_many(["der[1].mu_p", "der[2].mu_p", "der[3].mu_p"]);
+    for (k, expected) in [0.15, 0.35, 0.5].into_iter().enumerate() {
+        close(
+            mu[k],
+            expected,
+            1e-12,
+            format_args!("mu_p of DER {}", k + 1),
+        );
+    }
+    // Ratings scale by share too: headroom 15, 35 and sqrt(100² - 60²) = 80 MVA.
+    let q = h.get_many(["der[1].mu_q", "der[2].mu_q", "der[3].mu_q"]);
+    for (k, expected) in [15.0 / 130.0, 35.0 / 130.0, 80.0 / 130.0]
+        .into_iter()
+        .enumerate()
+    {
+        close(q[k], expected, 1e-12, format_args!("mu_q of DER {}", k + 1));
+    }
+}
+
+#[test]
+fn bad_configurations_parameters_and_inputs_are_refused() {
+    // A DVPP without a low-pass unit cannot carry the steady state: no instance.
+    let mut config = Config::<OperatorConfig>::default();
+    config.model.ders.retain(|d| d.name == "bess");
+    let log = match Harness::<Operator>::try_with_config(config, false) {
+        Ok(_) => panic!("instantiated without a low-pass unit"),
+        Err(log) => log,
+    };
+    assert!(
+        log.iter()
+            .any(|r| r.status == Status::Error && r.message.contains("no low-pass unit")),
+        "{log:#?}"
+    );
+    // A negative delay fails initialization naming the parameter; a reset recovers.
+    let mut h = Harness::<Operator>::new();
+    h.set("delay", -0.1);
+    assert_eq!(h.setup_experiment(0.0, None), Status::Ok);
+    assert_eq!(h.enter_initialization_mode(), Status::Ok);
+    assert_eq!(h.exit_initialization_mode(), Status::Error);
+    assert!(h.logged(Status::Error, "'delay'"), "{:#?}", h.log());
+    assert_eq!(h.reset(), Status::Ok);
+    h.init();
+    // A NaN availability is refused and the gains stay as they were.
+    h.step(DT);
+    let before = h.instance().core.store.clone();
+    assert_eq!(h.try_set("der[1].P_avail", f64::NAN), Status::Error);
+    assert!(h.logged(Status::Error, "'der[1].P_avail' is not finite"));
+    assert_eq!(h.instance().core.store, before);
+    assert_eq!(h.phase(), Phase::Error);
+    assert_participation(&mut h, "after the refusal");
+}

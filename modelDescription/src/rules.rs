@@ -86,6 +86,18 @@ fn check_header(md: &ModelDescription, r: &mut Report) {
         }
     }
     if let Some(de) = &md.default_experiment {
+        for (name, v) in [
+            ("startTime", de.start_time),
+            ("stopTime", de.stop_time),
+            ("tolerance", de.tolerance),
+        ] {
+            if matches!(v, Some(x) if !x.is_finite()) {
+                r.add(
+                    "DefaultExperiment",
+                    format!("{name} {} is not finite", v.unwrap_or_default()),
+                );
+            }
+        }
         if let (Some(a), Some(b)) = (de.start_time, de.stop_time) {
             if b <= a {
                 r.add(

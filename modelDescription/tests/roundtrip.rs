@@ -86,6 +86,22 @@ fn rules_catch_illegal_descriptions() {
             Box::new(|m| m.co_simulation.as_mut().unwrap().model_identifier = "9-lives".into()),
         ),
         (
+            "stopTime inf is not finite",
+            Box::new(|m| {
+                m.default_experiment
+                    .get_or_insert_with(Default::default)
+                    .stop_time = Some(f64::INFINITY)
+            }),
+        ),
+        (
+            "startTime NaN is not finite",
+            Box::new(|m| {
+                m.default_experiment
+                    .get_or_insert_with(Default::default)
+                    .start_time = Some(f64::NAN)
+            }),
+        ),
+        (
             "valueReference",
             Box::new(|m| {
                 m.model_variables.variables[1].value_reference =

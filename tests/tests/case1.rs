@@ -3,35 +3,18 @@
 //! participation moves from the PV to the wind, and the dc links stay within their limits except
 //! where the PV's primary source runs out of reserve.
 
-mod common;
-
-use common::dist;
-use dvpp_cosim::casestudy::{max_gap, peak, Signals};
 use dvpp_cosim::master::{self, Options};
-use std::path::PathBuf;
+use dvpp_e2e::scenario;
+use dvpp_report::casestudy::{max_gap, peak, Signals};
 
-fn scenario(name: &str) -> PathBuf {
-    let p = dist()
-        .parent()
-        .expect("dist has a parent")
-        .join(name)
-        .join(format!("{name}.ssp"));
-    assert!(
-        p.is_file(),
-        "{} is missing: run `cargo xtask bundle`",
-        p.display()
-    );
-    p
+fn run(name: &str) -> (Signals, dvpp_cosim::Table) {
+    let table =
+        master::simulate(&scenario(name), &Options::default()).unwrap_or_else(|e| panic!("{e}"));
+    let signals = Signals::of(&table).unwrap_or_else(|e| panic!("{name}: {e}"));
+    (signals, table)
 }
 
-fn run(name: &str) -> (Signals, dvpp_cosim::run::Table) {
-    let outcome =
-        master::run(&scenario(name), &Options::default()).unwrap_or_else(|e| panic!("{e}"));
-    let signals = Signals::of(&outcome.table).unwrap_or_else(|e| panic!("{name}: {e}"));
-    (signals, outcome.table)
-}
-
-fn column(t: &dvpp_cosim::run::Table, name: &str) -> Vec<f64> {
+fn column(t: &dvpp_cosim::Table, name: &str) -> Vec<f64> {
     t.column(name).unwrap_or_else(|| panic!("no column {name}"))
 }
 

@@ -1,10 +1,8 @@
 //! The bundled DER FMU as a master drives it: bad parameters fail initialization and name the
 //! parameter; the case-study variants initialize flat and keep their state across save/restore.
 
-mod common;
-
-use common::*;
 use dvpp_cosim::{Fmu, Instance, Status};
+use dvpp_e2e::*;
 use model_description::BaseType;
 use std::sync::Arc;
 

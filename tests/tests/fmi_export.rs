@@ -1,11 +1,9 @@
 //! End-to-end tests of the export layer: the bundled FMUs driven through their C API as a master
 //! drives them — legal and illegal call sequences, bad values, FMU state, threads.
 
-mod common;
-
-use common::*;
 use dvpp_cosim::fmu::FMI2_CS_FUNCTIONS;
 use dvpp_cosim::{Fmu, Instance, Status};
+use dvpp_e2e::*;
 use std::sync::Arc;
 
 fn assert_logged(i: &Instance, needle: &str) {

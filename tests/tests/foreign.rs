@@ -1,77 +1,12 @@
 //! Foreign FMUs (plain C in tests/foreign/, not built with fmi-export): alone, and as SSP systems run by our master.
 
-use dvpp_cosim::master::{self, simulate, Algorithm, Options};
-use dvpp_cosim::run::Table;
+use dvpp_cosim::master::{self, simulate, Options, Scheme as Algorithm};
+use dvpp_cosim::Table;
 use dvpp_cosim::{Fmu, Instance, Status};
-use std::io::Write;
+use dvpp_e2e::foreign::{build_foreign, foreign_dir, system, MODELS};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::{Arc, OnceLock};
-
-/// (C source stem, model identifier) of each foreign FMU.
-const MODELS: [(&str, &str); 3] = [
-    ("source", "foreign_source"),
-    ("lag", "foreign_lag"),
-    ("gain", "foreign_gain"),
-];
-
-/// Where the C sources, model descriptions and SSDs are.
-fn foreign_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("foreign")
-}
-
-/// Compile each model with the shared skeleton and zip `<id>.fmu` (modelDescription.xml and
-/// binaries/linux64/<id>.so) into `out_dir`; returns the archives in `MODELS` order.
-fn build_foreign(out_dir: &Path) -> Vec<PathBuf> {
-    let src = foreign_dir();
-    std::fs::create_dir_all(out_dir).expect("create the output directory");
-    let compiler = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    MODELS
-        .iter()
-        .map(|(stem, id)| {
-            let so = out_dir.join(format!("{id}.so"));
-            let out = Command::new(&compiler)
-                .args(["-shared", "-fPIC", "-O2", "-std=c99"])
-                .args(["-Wall", "-Wextra", "-Werror", "-I"])
-                .arg(src.join("fmi2"))
-                .arg(src.join(format!("{stem}.c")))
-                .arg(src.join("skeleton.c"))
-                .arg("-o")
-                .arg(&so)
-                .arg("-lm")
-                .output()
-                .unwrap_or_else(|e| panic!("cannot run {compiler}: {e}"));
-            assert!(
-                out.status.success(),
-                "compiling {stem}.c failed:\n{}",
-                String::from_utf8_lossy(&out.stderr)
-            );
-            let fmu = out_dir.join(format!("{id}.fmu"));
-            let xml = read(&src.join(format!("{stem}.xml")));
-            let binary = format!("binaries/linux64/{id}.so");
-            write_zip(&fmu, &[("modelDescription.xml", xml), (&binary, read(&so))]);
-            fmu
-        })
-        .collect()
-}
-
-fn read(path: &Path) -> Vec<u8> {
-    std::fs::read(path).unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()))
-}
-
-/// Write a deflated zip archive with these (name, contents) entries.
-fn write_zip(path: &Path, entries: &[(&str, Vec<u8>)]) {
-    let file = std::fs::File::create(path)
-        .unwrap_or_else(|e| panic!("cannot create {}: {e}", path.display()));
-    let mut zip = zip::ZipWriter::new(file);
-    let options = zip::write::SimpleFileOptions::default()
-        .compression_method(zip::CompressionMethod::Deflated);
-    for (name, bytes) in entries {
-        zip.start_file(*name, options).expect("zip entry");
-        zip.write_all(bytes).expect("zip write");
-    }
-    zip.finish().expect("zip finish");
-}
 
 /// The built FMUs and both forms of each system, made once per test process.
 struct Built {
@@ -96,27 +31,6 @@ fn built() -> &'static Built {
             loop_dir,
         }
     })
-}
-
-/// `<out>/<name>/` (SystemStructure.ssd and resources/<id>.fmu) and the same zipped as `<name>.ssp`.
-fn system(out: &Path, name: &str, fmus: &[PathBuf]) -> (PathBuf, PathBuf) {
-    let dir = out.join(name);
-    std::fs::create_dir_all(dir.join("resources")).expect("create the system directory");
-    let ssd = read(&foreign_dir().join(format!("{name}.ssd")));
-    std::fs::write(dir.join("SystemStructure.ssd"), &ssd).expect("write the SSD");
-    let mut entries = vec![("SystemStructure.ssd".to_owned(), ssd)];
-    for fmu in fmus {
-        let file = fmu.file_name().expect("a file name").to_string_lossy();
-        std::fs::copy(fmu, dir.join("resources").join(&*file)).expect("copy the FMU");
-        entries.push((format!("resources/{file}"), read(fmu)));
-    }
-    let ssp = out.join(format!("{name}.ssp"));
-    let entries: Vec<(&str, Vec<u8>)> = entries
-        .iter()
-        .map(|(n, b)| (n.as_str(), b.clone()))
-        .collect();
-    write_zip(&ssp, &entries);
-    (dir, ssp)
 }
 
 fn load(id: &str) -> Arc<Fmu> {
@@ -252,7 +166,6 @@ fn options(algorithm: Algorithm) -> Options {
         stop: None, // the SSD's DefaultExperiment: 1 s
         step: Some(H),
         algorithm,
-        progress: false,
     }
 }
 
@@ -338,15 +251,14 @@ fn step_lag_as_ssp_archive_equals_the_directory_form() {
     }
 }
 
-/// ASSUMPTION (the lead decides): the master may either refuse the loop (Err) or run it with
-/// the loop broken and reported as a warning (`master::run`'s `Outcome::warnings`, as
-/// tests/src/master.rs does now); either way the report must name both gains and say "loop" or
+/// The master runs an algebraic loop broken at one connection and reports it as a warning
+/// (`master::run`'s `Outcome::warnings`); the report must name both gains and say "loop" or
 /// "cycle". Both algorithms order the exchange by feedthrough, so both must see the loop.
 #[test]
 fn algebraic_loop_is_reported() {
     for algorithm in [Algorithm::GaussSeidel, Algorithm::Jacobi] {
         // Documented behaviour: the loop is reported as a warning and broken, the run goes on.
-        let report = match master::run(&built().loop_dir, &options(algorithm)) {
+        let report = match master::run(&built().loop_dir, &options(algorithm), &mut []) {
             Err(e) => panic!("{algorithm:?}: the loop should be broken, not fatal: {e}"),
             Ok(outcome) => outcome.warnings.join("\n"),
         };
@@ -470,7 +382,7 @@ fn an_unknown_element_kind_is_named() {
 #[test]
 fn the_cosim_binary_exits_non_zero_on_a_bad_system() {
     let dir = bad_system("binary", str::to_owned, Some("foreign_lag.fmu"));
-    let out = Command::new(env!("CARGO_BIN_EXE_cosim"))
+    let out = Command::new(dvpp_e2e::cosim())
         .arg(&dir)
         .arg("--out")
         .arg(dir.join("out.csv"))

@@ -2,10 +2,8 @@
 //! outputs, flat start, the 28 MW load step on the IEEE 9-bus system, power balance, no direct
 //! feedthrough, and bad case files refused by `fmi2Instantiate` with the problem named.
 
-mod common;
-
-use common::*;
 use dvpp_cosim::{Fmu, Instance, Status};
+use dvpp_e2e::*;
 use std::path::PathBuf;
 use std::sync::Arc;
 

@@ -1,10 +1,8 @@
 //! The bundled operator FMU as a master drives it: the cloud of case study I, degenerate inputs,
 //! rate limit and delay, and the desired aggregate response.
 
-mod common;
-
-use common::*;
 use dvpp_cosim::{Instance, Status};
+use dvpp_e2e::*;
 
 struct Op {
     i: Instance,

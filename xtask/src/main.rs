@@ -51,8 +51,11 @@ tasks:
   cosim SYSTEM.ssp [--stop T] [--step H] [--algorithm jacobi|gauss-seidel] [--out FILE.csv]
                   [--plot FILE.svg --signals a.x,b.y]
                   run an SSP system (or one FMU) in our master
-  bench    bundle, then measure ns per fmi2DoStep of each benchmark FMU
-  demo     bundle, then simulate every default FMU headless; results in results/
+  bench    bundle, then measure side by side in one run: case1_load in our master, fmpy.ssp
+           and libcosim; our master's ns per macro step (a ring of three C FMUs, case1_load);
+           ns per fmi2DoStep of each benchmark FMU
+  demo     bundle, then run case study I (case1_load, case1_cloud) in our master: CSVs and
+           figures in results/, figures in tests/figures/, metrics table into README.md
   test     bundle, run the Rust tests, then the Python (fmpy) tests in target/venv
   docs     regenerate README.md's variable tables from the FMUs' model descriptions";
 
@@ -84,10 +87,10 @@ fn main() -> ExitCode {
     }
 }
 
-/// Build the cdylibs and describe binaries of `fmus` in release mode.
+/// Build the cdylibs and describe binaries of `fmus` with the `ship` profile (release with LTO).
 fn build_release(fmus: &[&catalog::Fmu]) -> Result {
     let mut c = cargo();
-    c.args(["build", "--release"]);
+    c.args(["build", "--profile", "ship"]);
     for fmu in fmus {
         c.args(["--package", fmu.package]);
     }
@@ -96,7 +99,7 @@ fn build_release(fmus: &[&catalog::Fmu]) -> Result {
 
 /// Write one `.fmu`: modelDescription.xml from the describe binary, the binary, resources.
 fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result<String> {
-    let release = root().join("target").join("release");
+    let release = root().join("target").join("ship");
     let describe = release.join(format!("{package}-describe"));
     let output = Command::new(&describe)
         .arg(resources)
@@ -318,6 +321,13 @@ fn bench() -> Result {
         .arg(&cosim)
         .args(["--stop", "20", "--step", "1e-3"]))?;
     let mut c = master_binary("bench");
+    // The master's own overhead: a ring of three trivial C units; then case study I per step.
+    let foreign = root().join("target").join("bench").join("foreign");
+    let _ = std::fs::remove_dir_all(&foreign);
+    let fmus = dvpp_e2e::foreign::build_foreign(&foreign);
+    let (ring, _) = dvpp_e2e::foreign::system(&foreign, "ring", &fmus);
+    c.arg(format!("system|ring of three C lags|{}|10", ring.display()));
+    c.arg(format!("system|case1_load|{}|20", ssp.display()));
     for b in BENCHES {
         let sets: Vec<String> = b.set.iter().map(|(n, v)| format!("{n}={v}")).collect();
         c.arg(format!(
@@ -335,8 +345,8 @@ fn bench() -> Result {
 const DEMO_RUNS: [(&str, &str); 2] = [("case1_load", "load step"), ("case1_cloud", "cloud")];
 
 fn demo() -> Result {
-    use dvpp_cosim::casestudy::{self, Signals};
-    use dvpp_cosim::master::{self, Options};
+    use dvpp_cosim::master::{self, CsvWriter, Options, Progress, Recorder};
+    use dvpp_report::casestudy::{self, Signals};
     bundle(&[])?;
     let results = root().join("results");
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;
@@ -344,29 +354,34 @@ fn demo() -> Result {
     for (name, _) in DEMO_RUNS {
         let ssp = root().join("dist").join(name).join(format!("{name}.ssp"));
         let started = std::time::Instant::now();
-        let opts = Options {
-            progress: true,
-            ..Options::default()
-        };
-        let outcome = master::run(&ssp, &opts).map_err(|e| format!("{name}: {e}"))?;
         let csv = results.join(format!("{name}.csv"));
-        outcome
-            .table
-            .write_csv(&csv)
-            .map_err(|e| format!("{}: {e}", csv.display()))?;
-        let t_end = outcome.table.rows.last().map_or(0.0, |r| r[0]);
+        let (mut writer, mut progress, mut recorder) = (
+            CsvWriter::new(&csv),
+            Progress::default(),
+            Recorder::default(),
+        );
+        let outcome = master::run(
+            &ssp,
+            &Options::default(),
+            &mut [&mut writer, &mut progress, &mut recorder],
+        )
+        .map_err(|e| format!("{name}: {e}"))?;
+        if outcome.end != master::End::Completed {
+            return Err(format!("{name}: {:?}", outcome.end));
+        }
         println!(
-            "{name}: {t_end} s simulated in {:.2} s -> {}",
+            "{name}: {} s simulated in {:.2} s -> {}",
+            outcome.simulated,
             started.elapsed().as_secs_f64(),
             csv.display()
         );
-        signals.push(Signals::of(&outcome.table).map_err(|e| format!("{name}: {e}"))?);
+        signals.push(Signals::of(&recorder.table).map_err(|e| format!("{name}: {e}"))?);
     }
     let (load, cloud) = (&signals[0], &signals[1]);
     let (gap, worst) = casestudy::max_gap_at(&cloud.df, &load.df, 0);
     let figures = root().join("tests").join("figures");
     std::fs::create_dir_all(&figures).map_err(|e| e.to_string())?;
-    let save = |fig: dvpp_cosim::plot::Figure, file: &str| -> Result {
+    let save = |fig: dvpp_report::plot::Figure, file: &str| -> Result {
         for dir in [&results, &figures] {
             let path = dir.join(file);
             fig.save(&path)
@@ -463,7 +478,7 @@ fn demo() -> Result {
 }
 
 /// The low-pass units of a bundled scenario (ADPF time constant and order from their FMUs).
-fn low_pass_units(scenario: &str) -> Result<Vec<dvpp_cosim::casestudy::LowPass>> {
+fn low_pass_units(scenario: &str) -> Result<Vec<dvpp_report::casestudy::LowPass>> {
     let dir = root().join("dist").join(scenario);
     let mut out = Vec::new();
     let ssp =
@@ -477,7 +492,7 @@ fn low_pass_units(scenario: &str) -> Result<Vec<dvpp_cosim::casestudy::LowPass>>
                 .and_then(|s| s.parse::<f64>().ok())
         };
         if start("adpf.p.kind") == Some(1.0) {
-            out.push(dvpp_cosim::casestudy::LowPass {
+            out.push(dvpp_report::casestudy::LowPass {
                 name: c.name.clone(),
                 tau: start("adpf.p.tau").unwrap_or(1.0),
                 order: start("adpf.p.order").unwrap_or(1.0) as i32,
@@ -519,9 +534,11 @@ fn test() -> Result {
     let started = std::time::Instant::now();
     bundle(&[])?;
     let dist = root().join("dist").join("default");
+    let cosim = cosim_binary()?;
     run(cargo()
         .args(["test", "--workspace"])
-        .env("DVPP_DIST", &dist))?;
+        .env("DVPP_DIST", &dist)
+        .env("DVPP_COSIM", &cosim))?;
     // The 300 s grid dynamics tests are ignored in debug builds; run them optimized.
     run(cargo().args([
         "test",
@@ -536,7 +553,7 @@ fn test() -> Result {
         .args(["-m", "pytest", "-q", "tests/python"])
         .current_dir(root())
         .env("DVPP_DIST", &dist)
-        .env("DVPP_COSIM", cosim_binary()?))?;
+        .env("DVPP_COSIM", &cosim))?;
     println!(
         "cargo xtask test: all passed in {:.0} s",
         started.elapsed().as_secs_f64()

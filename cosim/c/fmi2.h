@@ -1,4 +1,4 @@
-/* Minimal FMI 2.0 Co-Simulation C interface (types, callbacks, prototypes) used by the foreign test FMUs. */
+/* Minimal FMI 2.0 Co-Simulation C interface (types, callbacks, prototypes): the master's logger and the foreign test FMUs compile against it. */
 #ifndef FOREIGN_FMI2_H
 #define FOREIGN_FMI2_H
 

@@ -2,10 +2,10 @@
 
 fn main() {
     println!("cargo:rerun-if-changed=c/logger.c");
-    println!("cargo:rerun-if-changed=foreign/fmi2/fmi2.h");
+    println!("cargo:rerun-if-changed=c/fmi2.h");
     cc::Build::new()
         .file("c/logger.c")
-        .include("foreign/fmi2")
+        .include("c")
         .std("c99")
         .warnings(true)
         .extra_warnings(true)

@@ -6,7 +6,7 @@
 //! (peaks survive), non-finite values break the line, and no data can make rendering panic.
 //!
 //! ```
-//! use dvpp_cosim::plot::{Figure, Panel, Style};
+//! use dvpp_report::plot::{Figure, Panel, Style};
 //! let t: Vec<f64> = (0..100).map(|i| i as f64 * 0.1).collect();
 //! let y: Vec<f64> = t.iter().map(|t| 1.0 - (-t).exp()).collect();
 //! let svg = Figure::new("Step response")

@@ -2,7 +2,7 @@
 //! figures of the demo (PCC response vs desired, DER contributions, dc gains, dc links, ADPFs).
 
 use crate::plot::{Figure, Panel, Style};
-use crate::run::Table;
+use crate::Columns;
 
 /// System base of the shipped grid cases, MVA (powers are plotted in MW).
 pub const S_BASE_MVA: f64 = 100.0;
@@ -47,7 +47,7 @@ pub fn max_gap_at(a: &[f64], b: &[f64], from: usize) -> (f64, usize) {
     (gap / peak(b), at)
 }
 
-fn col(t: &Table, name: &str) -> Result<Vec<f64>, String> {
+fn col(t: &(impl Columns + ?Sized), name: &str) -> Result<Vec<f64>, String> {
     t.column(name)
         .ok_or_else(|| format!("the results have no column '{name}'"))
 }
@@ -59,8 +59,8 @@ fn delta(x: &[f64]) -> Vec<f64> {
 }
 
 /// The DER components of a result, in slot order (those with a `v_dc` output).
-pub fn ders(t: &Table) -> Vec<String> {
-    t.columns
+pub fn ders(t: &(impl Columns + ?Sized)) -> Vec<String> {
+    t.names()
         .iter()
         .filter_map(|c| c.strip_suffix(".v_dc"))
         .map(str::to_owned)
@@ -90,7 +90,7 @@ pub struct DerSignals {
 }
 
 impl Signals {
-    pub fn of(t: &Table) -> Result<Signals, String> {
+    pub fn of(t: &(impl Columns + ?Sized)) -> Result<Signals, String> {
         let f = col(t, "grid.pcc.f")?;
         let v = col(t, "grid.pcc.v")?;
         let mut der = Vec::new();

@@ -759,6 +759,8 @@ fn parse_tree(xml: &str, file: &str) -> Result<Node, Error> {
         line: 1,
     };
     let mut stack: Vec<Node> = Vec::new();
+    // Per open element: whether its content is free (it is, or is inside, an ssc:Annotation).
+    let mut free: Vec<bool> = Vec::new();
     let mut root: Option<Node> = None;
     let malformed = |lines: &mut Lines, pos: u64, what: String| {
         let pos = pos as usize;
@@ -778,17 +780,52 @@ fn parse_tree(xml: &str, file: &str) -> Result<Node, Error> {
             }
         };
         let line = lines.line_at(pos as usize);
+        let inside_free = free.last().copied().unwrap_or(false);
+        let start = |e: &BytesStart| -> Result<Node, Error> {
+            let node = make_node(&reader, ns.clone(), e, line, file)?;
+            if !inside_free {
+                check_namespace(&node, file)?;
+            }
+            if stack.len() >= MAX_DEPTH {
+                return Err(Error(format!(
+                    "{file}: <{}>: elements nested deeper than {MAX_DEPTH} (line {line}), the reader's limit",
+                    node.qname
+                )));
+            }
+            Ok(node)
+        };
         let (node, open) = match event {
-            Event::Start(e) => (make_node(&reader, ns, &e, line, file)?, true),
-            Event::Empty(e) => (make_node(&reader, ns, &e, line, file)?, false),
+            Event::Start(e) => (start(&e)?, true),
+            Event::Empty(e) => (start(&e)?, false),
             Event::End(_) => match stack.pop() {
-                Some(node) => (node, false),
+                Some(node) => {
+                    free.pop();
+                    (node, false)
+                }
                 None => return Err(malformed(&mut lines, pos, "unexpected end tag".into())),
             },
+            Event::Text(t) if !inside_free && !stack.is_empty() => {
+                let text = String::from_utf8_lossy(t.as_ref()).into_owned();
+                if text.trim().is_empty() {
+                    continue;
+                }
+                let parent = stack.last().map_or("", |n| n.qname.as_str());
+                let shown: String = text.trim().chars().take(40).collect();
+                return Err(Error(format!(
+                    "{file}: <{parent}>: unexpected text \"{shown}\" at line {line} (SSP elements hold no text outside <ssc:Annotation>; a lost '<'?)"
+                )));
+            }
+            Event::CData(_) if !inside_free && !stack.is_empty() => {
+                let parent = stack.last().map_or("", |n| n.qname.as_str());
+                return Err(Error(format!(
+                    "{file}: <{parent}>: unexpected CDATA at line {line} (SSP elements hold no text outside <ssc:Annotation>)"
+                )));
+            }
             Event::Eof => break,
             _ => continue,
         };
         if open {
+            free.push(inside_free || node.is(NS_SSC, "Annotation"));
             stack.push(node);
         } else if let Some(parent) = stack.last_mut() {
             parent.children.push(node);
@@ -809,6 +846,34 @@ fn parse_tree(xml: &str, file: &str) -> Result<Node, Error> {
         )));
     }
     root.ok_or_else(|| Error(format!("{file}: malformed XML: no root element")))
+}
+
+/// How deep elements may nest in an SSD or SSV file (the SSP structure needs about a dozen
+/// levels; the limit keeps a hostile file from exhausting the stack).
+pub const MAX_DEPTH: usize = 256;
+
+/// Refuse an element outside `ssc:Annotation` in a namespace the reader does not interpret:
+/// silently skipping it would drop what its author meant (a connection, a parameter set).
+fn check_namespace(node: &Node, file: &str) -> Result<(), Error> {
+    let Some(ns) = node.ns.as_deref() else {
+        return Ok(());
+    };
+    if [NS_SSD, NS_SSC, NS_SSV].contains(&ns) {
+        return Ok(());
+    }
+    let near = [NS_SSD, NS_SSC, NS_SSV]
+        .into_iter()
+        .find(|k| ns.trim_end_matches('/').eq_ignore_ascii_case(k));
+    let hint = match near {
+        Some(k) => format!(" (did you mean {k}?)"),
+        None => {
+            " (only SSP 1.0 elements are read; vendor content belongs in <ssc:Annotation>)".into()
+        }
+    };
+    Err(Error(format!(
+        "{file}: <{}>: namespace {ns} is not an SSP namespace the reader can interpret (line {}){hint}",
+        node.qname, node.line
+    )))
 }
 
 fn owned_ns(r: ResolveResult) -> Result<Option<String>, String> {
@@ -931,6 +996,23 @@ fn parse_ssd_labelled(xml: &str, dir: &Path, file: &str) -> Result<System, Error
     if let Some(e) = experiment {
         system.start_time = d.real_attr(e, "startTime")?.unwrap_or(0.0);
         system.stop_time = d.real_attr(e, "stopTime")?;
+        if !system.start_time.is_finite() {
+            return Err(d.err(
+                e,
+                format_args!("startTime {} is not finite", system.start_time),
+            ));
+        }
+        if let Some(stop) = system.stop_time {
+            if !(stop.is_finite() && stop > system.start_time) {
+                return Err(d.err(
+                    e,
+                    format_args!(
+                        "stopTime {stop} must be finite and after startTime {}",
+                        system.start_time
+                    ),
+                ));
+            }
+        }
         system.step_size = read_step_size(&d, e)?;
     }
     Ok(system)
@@ -1285,7 +1367,18 @@ fn read_parameter(d: &Doc, n: &Node) -> Result<Parameter, Error> {
                 };
                 value = Some(match local {
                     "Real" => Value::Real(parse_double(text).ok_or_else(bad)?),
-                    "Integer" => Value::Integer(text.trim().parse().map_err(|_| bad())?),
+                    "Integer" => {
+                        let x: i64 = text.trim().parse().map_err(|_| bad())?;
+                        if i32::try_from(x).is_err() {
+                            return Err(d.err(
+                                v,
+                                format_args!(
+                                    "parameter '{name}': value {x} is outside the 32-bit range of an SSP/FMI Integer"
+                                ),
+                            ));
+                        }
+                        Value::Integer(x)
+                    }
                     "Boolean" => Value::Boolean(match text.trim() {
                         "true" | "1" => true,
                         "false" | "0" => false,
@@ -1671,7 +1764,14 @@ mod tests {
             NS_SSD,
             "http://ssp-standard.org/SSP2/SystemStructureDescription",
         );
-        assert_err(&other_ns, &["root element must be", "SSP2"]);
+        assert_err(
+            &other_ns,
+            &[
+                "<ssd:SystemStructureDescription>",
+                "SSP2",
+                "not an SSP namespace",
+            ],
+        );
         let v2 = xml.replace("version=\"1.0\" name=\"demo", "version=\"2.0\" name=\"demo");
         assert_err(
             &v2,
@@ -1700,14 +1800,32 @@ mod tests {
         );
         let no_ns = xml.replace("<ssd:Connections>", "<ssd:Connections><Connection/>");
         assert_err(&no_ns, &["<Connection>", "unexpected element"]);
-        // Foreign namespaces are skipped anywhere.
-        let foreign = xml
-            .replace(
-                "<ssd:Connections>",
-                "<ssd:Connections><x:Note xmlns:x=\"urn:x\"><x:y/></x:Note>",
-            )
-            .replace("<ssc:Real/>", "<ssc:Real/><v:Extra xmlns:v=\"urn:v\"/>");
-        assert_eq!(parse_ssd(&foreign, Path::new(".")).unwrap(), sample());
+        // Foreign namespaces are refused where the reader would have to drop them ...
+        let foreign = xml.replace(
+            "<ssd:Connections>",
+            "<ssd:Connections><x:Note xmlns:x=\"urn:x\"><x:y/></x:Note>",
+        );
+        assert_err(&foreign, &["<x:Note>", "urn:x", "not an SSP namespace"]);
+        let slash = xml.replace(NS_SSV, &format!("{NS_SSV}/"));
+        assert_err(&slash, &["<ssv:ParameterSet>", "did you mean"]);
+        let text = xml.replace("<ssd:Connection ", "ssd:Connection ");
+        assert_err(
+            &text,
+            &["<ssd:Connections>", "unexpected text", "ssd:Connection"],
+        );
+        // ... and free inside an annotation, at any depth up to the reader's limit.
+        let annotated = xml.replace(
+            "</ssd:SystemStructureDescription>",
+            "<ssd:Annotations><ssc:Annotation type=\"x\"><x:Note xmlns:x=\"urn:x\">text<x:y/></x:Note></ssc:Annotation></ssd:Annotations></ssd:SystemStructureDescription>",
+        );
+        assert_ne!(annotated, xml);
+        assert_eq!(parse_ssd(&annotated, Path::new(".")).unwrap(), sample());
+        let deep = format!(
+            "{}{}",
+            "<a>".repeat(MAX_DEPTH * 1000),
+            "</a>".repeat(MAX_DEPTH * 1000)
+        );
+        assert_err(&deep, &["nested deeper than 256"]);
         let nested = xml.replace(
             "<ssd:Elements>",
             "<ssd:Elements><ssd:System name=\"inner\"/>",

@@ -1,5 +1,10 @@
-//! The co-simulation master: runs an SSP system of FMUs (fixed-step Jacobi or Gauss-Seidel in
-//! integer nanoseconds) from initialization to the stop time and records its outputs.
+//! The co-simulation master: runs an SSP system of FMUs in fixed communication steps (integer
+//! nanoseconds) from initialization to the stop time, handing each point to its observers.
+//!
+//! How the units advance over a step is an [`Algorithm`] ([`Jacobi`], [`GaussSeidel`]); what
+//! happens to the results is up to the [`Observer`]s ([`CsvWriter`] streams them to disk,
+//! [`Progress`] reports, [`Recorder`] keeps them in memory). The loop polls
+//! [`crate::interrupt::requested`] at each communication point.
 //!
 //! One exchange moves every connection's value from its start connector to its end connector
 //! (with the SSP `LinearTransformation`), in dependency order: a connection leaving a unit with
@@ -7,36 +12,51 @@
 //! during initialization) is read after the connections into that unit were set. A cycle of
 //! such dependencies (an algebraic loop) is reported and broken at the connection of the cycle
 //! that comes first in the SSD: that connection carries the value from before the exchange.
-//! Initialization repeats the exchange until no value changes; a Jacobi step steps every unit
-//! with the inputs of the previous exchange and then exchanges; a Gauss-Seidel step steps the
-//! units one by one in connection order (units in a cycle in SSD order) and exchanges after each.
+//! Initialization repeats the exchange until no value changes.
+
+mod algorithm;
+mod observer;
+
+pub use algorithm::{Algorithm, GaussSeidel, Jacobi};
+pub use observer::{partial_path, CsvWriter, End, Observer, Progress, Recorder, RunInfo};
 
 use crate::fmu::{Fmu, Instance, Status};
-use crate::run::{ticks, Table, NS};
+use crate::interrupt;
 use crate::ssp::{self, Component, Value};
+use crate::table::{seconds, ticks, Table};
 use model_description::{BaseType, Causality, ModelDescription};
 use std::collections::{BTreeMap, BTreeSet};
 use std::fmt;
-use std::io::IsTerminal;
 use std::path::Path;
 use std::sync::Arc;
 
-/// How the units are stepped within one communication step.
+/// The built-in algorithms by name (the `--algorithm` of `cosim`); [`System::simulate_with`]
+/// takes any [`Algorithm`].
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Algorithm {
-    /// All units step from the same exchanged inputs (parallel in principle).
+pub enum Scheme {
+    /// [`Jacobi`]: all units step from the same exchanged inputs.
     #[default]
     Jacobi,
-    /// Units step one after the other, each seeing the outputs of those stepped before it.
+    /// [`GaussSeidel`]: units step one after the other in dependency order.
     GaussSeidel,
 }
 
-impl std::str::FromStr for Algorithm {
+impl Scheme {
+    /// The algorithm this name stands for.
+    pub fn algorithm(self) -> Box<dyn Algorithm> {
+        match self {
+            Scheme::Jacobi => Box::new(Jacobi),
+            Scheme::GaussSeidel => Box::new(GaussSeidel),
+        }
+    }
+}
+
+impl std::str::FromStr for Scheme {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self, Error> {
         match s {
-            "jacobi" => Ok(Algorithm::Jacobi),
-            "gauss-seidel" => Ok(Algorithm::GaussSeidel),
+            "jacobi" => Ok(Scheme::Jacobi),
+            "gauss-seidel" => Ok(Scheme::GaussSeidel),
             _ => Err(Error(format!(
                 "unknown algorithm '{s}': jacobi or gauss-seidel"
             ))),
@@ -49,9 +69,7 @@ impl std::str::FromStr for Algorithm {
 pub struct Options {
     pub stop: Option<f64>,
     pub step: Option<f64>,
-    pub algorithm: Algorithm,
-    /// Show progress on stderr.
-    pub progress: bool,
+    pub algorithm: Scheme,
 }
 
 /// What went wrong, naming the unit, element or file.
@@ -72,31 +90,56 @@ impl From<ssp::Error> for Error {
     }
 }
 
-/// The results of a run and the warnings it produced (also printed to stderr as they happen).
-#[derive(Debug, Clone, Default)]
+/// How a run went: how it ended, its warnings (also printed to stderr as they happen) and
+/// where the time went.
+#[derive(Debug, Clone)]
 pub struct Outcome {
-    pub table: Table,
+    pub end: End,
     pub warnings: Vec<String>,
+    /// Communication points recorded (the initial one included).
+    pub samples: u64,
+    /// Simulated time, s.
+    pub simulated: f64,
+    /// Recorded outputs (columns besides `time`).
+    pub columns: usize,
     /// Wall time of reading the system and loading its FMUs, and of initializing and stepping.
     pub load_time: std::time::Duration,
     pub run_time: std::time::Duration,
 }
 
-/// Load the system at `path` (an `.ssp`, a directory or an `.ssd`) and simulate it.
+/// Load the system at `path` (an `.ssp`, a directory or an `.ssd`) and simulate it to its end,
+/// keeping the results in memory (tests and short runs; [`run`] streams them instead).
 pub fn simulate(path: &Path, opts: &Options) -> Result<Table, Error> {
-    run(path, opts).map(|o| o.table)
+    System::load(&ssp::read(path)?)?.simulate(opts)
 }
 
-/// Like [`simulate`], also returning the warnings.
-pub fn run(path: &Path, opts: &Options) -> Result<Outcome, Error> {
+/// Load the system at `path` (an `.ssp`, a directory, an `.ssd` or one `.fmu` on its own) and
+/// simulate it, handing every communication point to `observers`.
+///
+/// `Err` when the system cannot be loaded or its experiment is invalid (no observer has started
+/// then); a run that starts returns `Ok` with [`Outcome::end`] saying how it ended.
+pub fn run(
+    path: &Path,
+    opts: &Options,
+    observers: &mut [&mut dyn Observer],
+) -> Result<Outcome, Error> {
     let started = std::time::Instant::now();
-    let package = ssp::read(path)?;
-    let mut system = System::load(&package)?;
+    // An unpacked .ssp lives as long as its FMUs are loaded (they are unpacked again each).
+    let mut system = if path.extension().is_some_and(|e| e == "fmu") {
+        System::alone(path)?
+    } else {
+        System::load(&ssp::read(path)?)?
+    };
     let load_time = started.elapsed();
-    let table = system.simulate(opts)?;
+    let columns = system.columns().len() - 1;
+    let mut algorithm = opts.algorithm.algorithm();
+    let (end, samples, simulated) = system.simulate_with(opts, &mut *algorithm, observers)?;
     Ok(Outcome {
-        table,
+        end,
         warnings: system.warnings,
+        samples,
+        simulated,
+        columns,
         load_time,
         run_time: started.elapsed() - load_time,
     })
@@ -165,6 +208,8 @@ pub struct System {
     stop: Option<f64>,
     step: Option<f64>,
     name: String,
+    /// The current communication point: time, then every unit's recorded outputs.
+    row: Vec<f64>,
     /// Warnings so far (loops, FMU warnings).
     pub warnings: Vec<String>,
 }
@@ -218,11 +263,7 @@ fn dependencies(
 }
 
 impl Unit {
-    fn load(c: &Component, package: &ssp::Package) -> Result<Unit, Error> {
-        let path = package.source_path(c);
-        let fmu = Fmu::load(&path)
-            .map_err(|e| Error(format!("component '{}' ({}): {e}", c.name, c.source)))?;
-        let fmu = Arc::new(fmu);
+    fn load(c: &Component, fmu: Arc<Fmu>) -> Result<Unit, Error> {
         let md = &fmu.description;
         let mut reads = Vec::new();
         for k in &c.connectors {
@@ -524,9 +565,55 @@ impl System {
     /// Load every component's FMU, resolve the connections and check the parameter bindings.
     pub fn load(package: &ssp::Package) -> Result<System, Error> {
         let sys = &package.system;
-        let mut units = Vec::with_capacity(sys.components.len());
+        let mut fmus = Vec::with_capacity(sys.components.len());
         for c in &sys.components {
-            units.push(Unit::load(c, package)?);
+            let fmu = Fmu::load(&package.source_path(c))
+                .map_err(|e| Error(format!("component '{}' ({}): {e}", c.name, c.source)))?;
+            fmus.push(Arc::new(fmu));
+        }
+        System::assemble(sys, fmus)
+    }
+
+    /// One FMU on its own: every output recorded, inputs held at their start values, the
+    /// experiment from its `DefaultExperiment` (stop 1 s and step 1 ms where it gives none).
+    pub fn alone(path: &Path) -> Result<System, Error> {
+        let fmu = Arc::new(Fmu::load(path).map_err(|e| Error(format!("{}: {e}", path.display())))?);
+        let md = &fmu.description;
+        let connectors = md
+            .model_variables
+            .variables
+            .iter()
+            .filter(|v| v.causality() == Causality::Output && v.base_type() != BaseType::String)
+            .map(|v| ssp::Connector {
+                name: v.name.clone(),
+                kind: ssp::Kind::Output,
+                ty: v.base_type().into(),
+            })
+            .collect();
+        let name = md.model_identifier().unwrap_or(&md.model_name).to_owned();
+        let de = md.default_experiment.clone().unwrap_or_default();
+        let sys = ssp::System {
+            name: name.clone(),
+            description: None,
+            components: vec![Component {
+                name,
+                source: path.display().to_string(),
+                connectors,
+                parameters: Vec::new(),
+            }],
+            connections: Vec::new(),
+            start_time: de.start_time.unwrap_or(0.0),
+            stop_time: Some(de.stop_time.unwrap_or(1.0)),
+            step_size: Some(de.step_size.unwrap_or(1e-3)),
+        };
+        System::assemble(&sys, vec![fmu])
+    }
+
+    /// Resolve the connections and parameter bindings of `sys` over its loaded FMUs.
+    fn assemble(sys: &ssp::System, fmus: Vec<Arc<Fmu>>) -> Result<System, Error> {
+        let mut units = Vec::with_capacity(fmus.len());
+        for (c, fmu) in sys.components.iter().zip(fmus) {
+            units.push(Unit::load(c, fmu)?);
         }
         let index = |name: &str| {
             sys.components
@@ -601,6 +688,14 @@ impl System {
                         c.name, p.name
                     )));
                 }
+                if let Value::Integer(v) = p.value {
+                    if i32::try_from(v).is_err() {
+                        return Err(Error(format!(
+                            "component '{}': parameter binding '{}': {v} is outside the 32-bit range of an FMI Integer",
+                            c.name, p.name
+                        )));
+                    }
+                }
                 let ok = matches!(
                     (&p.value, var.ty),
                     (Value::Real(_), BaseType::Real)
@@ -635,6 +730,7 @@ impl System {
             stop: sys.stop_time,
             step: sys.step_size,
             name: sys.name.clone(),
+            row: Vec::new(),
             warnings,
         })
     }
@@ -681,69 +777,216 @@ impl System {
         Ok(changed)
     }
 
-    fn record(&mut self, t: i64, table: &mut Table) -> Result<(), Error> {
-        let mut row = Vec::with_capacity(table.columns.len());
-        row.push(t as f64 / NS as f64);
+    /// Read every unit's recorded outputs into the row buffer (time first).
+    fn sample(&mut self, t: i64) -> Result<(), Error> {
+        self.row.clear();
+        self.row.push(seconds(t));
         for u in &mut self.units {
             if !u.fresh {
                 u.read(&mut self.warnings)?;
             }
-            row.extend_from_slice(&u.values);
+            self.row.extend_from_slice(&u.values);
         }
-        table.rows.push(row);
         Ok(())
     }
 
-    /// Initialize, step to the stop time and return the recorded outputs.
-    pub fn simulate(&mut self, opts: &Options) -> Result<Table, Error> {
-        let start = ticks(self.start);
-        let stop_s = opts.stop.or(self.stop).ok_or_else(|| {
-            Error(format!(
-                "system '{}': no stop time (give --stop or a DefaultExperiment stopTime)",
-                self.name
-            ))
-        })?;
-        let step_s = opts.step.or(self.step).ok_or_else(|| {
-            Error(format!(
-                "system '{}': no step size (give --step or the OSP FixedStepAlgorithm baseStepSize annotation)",
-                self.name
-            ))
-        })?;
-        let (stop, step) = (ticks(stop_s), ticks(step_s));
-        if !(step_s.is_finite() && step > 0) {
-            return Err(Error(format!(
-                "step size {step_s} s: must be at least 1 ns"
-            )));
-        }
-        if !(stop_s.is_finite() && stop > start) {
-            return Err(Error(format!(
-                "stop time {stop_s} s: must be after the start time {} s",
-                self.start
-            )));
-        }
-        let secs = |t: i64| t as f64 / NS as f64;
-        let mut table = Table {
-            columns: vec!["time".into()],
-            rows: Vec::with_capacity(((stop - start) / step + 2) as usize),
-        };
+    /// `time`, then `component.variable` of every recorded output.
+    pub fn columns(&self) -> Vec<String> {
+        let mut columns = vec!["time".to_owned()];
         for u in &self.units {
             let md = &u.inst.fmu().description;
             for r in &u.reads {
                 let name = &md.model_variables.variables[r.index as usize - 1].name;
-                table.columns.push(format!("{}.{name}", u.name));
+                columns.push(format!("{}.{name}", u.name));
             }
         }
+        columns
+    }
 
-        // Initialization: experiment, parameters, then exchange until nothing changes.
+    /// The experiment in ticks: start, stop and step from `opts` or the system, each checked.
+    fn experiment(&self, opts: &Options) -> Result<(i64, i64, i64), Error> {
+        let name = &self.name;
+        let stop_s = opts.stop.or(self.stop).ok_or_else(|| {
+            Error(format!(
+                "system '{name}': no stop time (give --stop or a DefaultExperiment stopTime)"
+            ))
+        })?;
+        let step_s = opts.step.or(self.step).ok_or_else(|| {
+            Error(format!(
+                "system '{name}': no step size (give --step or the OSP FixedStepAlgorithm baseStepSize annotation)"
+            ))
+        })?;
+        let limit = |what: &str, v: f64| {
+            ticks(v).ok_or_else(|| {
+                Error(format!(
+                    "system '{name}': {what} {v} s is not a finite time within ±{:e} s",
+                    crate::table::MAX_TIME
+                ))
+            })
+        };
+        let (start, stop, step) = (
+            limit("start time", self.start)?,
+            limit("stop time", stop_s)?,
+            limit("step size", step_s)?,
+        );
+        if step <= 0 {
+            return Err(Error(format!(
+                "system '{name}': step size {step_s} s must be at least 1 ns"
+            )));
+        }
+        if stop <= start {
+            return Err(Error(format!(
+                "system '{name}': stop time {stop_s} s must be after the start time {} s",
+                self.start
+            )));
+        }
+        let steps = (stop - start) / step;
+        if steps > MAX_STEPS {
+            return Err(Error(format!(
+                "system '{name}': {steps} communication steps from {} s to {stop_s} s by {step_s} s; a run takes at most {MAX_STEPS}",
+                self.start
+            )));
+        }
+        Ok((start, stop, step))
+    }
+
+    /// [`System::simulate_with`] with the algorithm named in `opts`, results in memory.
+    pub fn simulate(&mut self, opts: &Options) -> Result<Table, Error> {
+        let mut recorder = Recorder::default();
+        let mut algorithm = opts.algorithm.algorithm();
+        let (end, _, _) = self.simulate_with(opts, &mut *algorithm, &mut [&mut recorder])?;
+        match end {
+            End::Completed => Ok(recorder.table),
+            End::Interrupted { signal, at } => Err(Error(format!(
+                "interrupted by signal {signal} at t = {at} s"
+            ))),
+            End::Failed { error, .. } => Err(Error(error)),
+        }
+    }
+
+    /// Initialize, step with `algorithm` to the stop time (or until an error or a signal) and
+    /// hand every communication point to `observers`; returns how the run ended, the number of
+    /// communication points recorded and the simulated time, s.
+    ///
+    /// `Err` only when the experiment is invalid, before any observer started; an error during
+    /// the run ends it as [`End::Failed`] after the observers had every point up to it.
+    pub fn simulate_with(
+        &mut self,
+        opts: &Options,
+        algorithm: &mut dyn Algorithm,
+        observers: &mut [&mut dyn Observer],
+    ) -> Result<(End, u64, f64), Error> {
+        let (start, stop, step) = self.experiment(opts)?;
+        let columns = self.columns();
+        let info = RunInfo {
+            system: &self.name,
+            columns: &columns,
+            start: seconds(start),
+            stop: seconds(stop),
+        };
+        let mut started = Vec::with_capacity(observers.len());
+        let mut result = Ok(None);
+        for (k, o) in observers.iter_mut().enumerate() {
+            if let Err(e) = o.start(&info) {
+                result = Err(e);
+                break;
+            }
+            started.push(k);
+        }
+        let mut last = None;
+        let mut samples = 0;
+        if result.is_ok() {
+            result = self.drive(
+                start,
+                stop,
+                step,
+                algorithm,
+                observers,
+                &mut last,
+                &mut samples,
+            );
+        }
+        let at = last.map_or(seconds(start), seconds);
+        let end = match result {
+            Ok(None) => End::Completed,
+            Ok(Some(signal)) => End::Interrupted { signal, at },
+            Err(e) => End::Failed { at, error: e.0 },
+        };
+        for k in started {
+            if let Err(e) = observers[k].finish(&end) {
+                if end == End::Completed {
+                    return Ok((End::Failed { at, error: e.0 }, samples, at - seconds(start)));
+                }
+                eprintln!("cosim: {e}");
+            }
+        }
+        Ok((end, samples, at - seconds(start)))
+    }
+
+    /// The run itself: `Ok(Some(signal))` when interrupted; `last` is the last point recorded.
+    #[allow(clippy::too_many_arguments)]
+    fn drive(
+        &mut self,
+        start: i64,
+        stop: i64,
+        step: i64,
+        algorithm: &mut dyn Algorithm,
+        observers: &mut [&mut dyn Observer],
+        last: &mut Option<i64>,
+        samples: &mut u64,
+    ) -> Result<Option<i32>, Error> {
+        if let Some(signal) = interrupt::requested() {
+            return Ok(Some(signal));
+        }
+        self.initialize(start, stop)
+            .map_err(|e| Error(format!("during initialization: {e}")))?;
+        let mut t = start;
+        loop {
+            self.sample(t)?;
+            for o in observers.iter_mut() {
+                o.sample(&self.row)?;
+            }
+            *last = Some(t);
+            *samples += 1;
+            if t >= stop {
+                break;
+            }
+            if let Some(signal) = interrupt::requested() {
+                return Ok(Some(signal));
+            }
+            let h = step.min(stop - t);
+            algorithm
+                .step(&mut Coupling { system: self }, t, h)
+                .map_err(|e| {
+                    Error(format!(
+                        "in the communication step from t = {} s to {} s ({}): {e}",
+                        seconds(t),
+                        seconds(t + h),
+                        algorithm.name()
+                    ))
+                })?;
+            t += h;
+        }
+        for u in &mut self.units {
+            let s = u.inst.terminate();
+            u.check(|| "fmi2Terminate".into(), s, &mut self.warnings)?;
+        }
+        Ok(None)
+    }
+
+    /// Experiment, parameters, then exchange until nothing changes; ends in step mode with the
+    /// connections exchanged.
+    fn initialize(&mut self, start: i64, stop: i64) -> Result<(), Error> {
         for k in 0..self.units.len() {
             let u = &mut self.units[k];
-            let s = u.inst.setup_experiment(secs(start), Some(secs(stop)));
+            let s = u.inst.setup_experiment(seconds(start), Some(seconds(stop)));
             u.check(|| "fmi2SetupExperiment".into(), s, &mut self.warnings)?;
         }
         for (k, name, var, value) in &self.parameters {
             let u = &mut self.units[*k];
             let s = match value {
                 Value::Real(v) => u.inst.set_real(&[var.vr], &[*v]),
+                // Range-checked against i32 by the SSP reader.
                 Value::Integer(v) => u.inst.set_integer(&[var.vr], &[*v as i32]),
                 Value::Boolean(v) => u.inst.set_boolean(&[var.vr], &[*v]),
                 Value::String(v) => u.inst.set_string(&[var.vr], &[v.as_str()]),
@@ -783,65 +1026,44 @@ impl System {
             u.fresh = false;
         }
         self.exchange(Phase::Step)?;
-        self.record(start, &mut table)?;
+        Ok(())
+    }
+}
 
-        let progress = opts.progress;
-        let terminal = std::io::stderr().is_terminal();
-        let started = std::time::Instant::now();
-        let total = (stop - start) as f64;
-        let mut shown = 0;
-        let mut t = start;
-        while t < stop {
-            let h = step.min(stop - t);
-            let what = || format!("fmi2DoStep at t = {} s", secs(t));
-            let what = &what;
-            match opts.algorithm {
-                Algorithm::Jacobi => {
-                    for u in &mut self.units {
-                        let s = u.inst.do_step(secs(t), secs(h));
-                        u.check(what, s, &mut self.warnings)?;
-                        u.fresh = false;
-                    }
-                    self.exchange(Phase::Step)?;
-                }
-                Algorithm::GaussSeidel => {
-                    for k in 0..self.unit_order.len() {
-                        let u = &mut self.units[self.unit_order[k]];
-                        let s = u.inst.do_step(secs(t), secs(h));
-                        u.check(what, s, &mut self.warnings)?;
-                        u.fresh = false;
-                        self.exchange(Phase::Step)?;
-                    }
-                }
-            }
-            t += h;
-            self.record(t, &mut table)?;
-            if progress {
-                let percent = (((t - start) as f64 / total) * 100.0) as i32;
-                let every = if terminal { 1 } else { 25 };
-                if percent >= shown + every {
-                    shown = percent - percent % every;
-                    let line = format!(
-                        "{}: {percent:3}% (t = {:.3} s, {:.1} s wall)",
-                        self.name,
-                        secs(t),
-                        started.elapsed().as_secs_f64()
-                    );
-                    if terminal {
-                        eprint!("\r{line}");
-                    } else {
-                        eprintln!("{line}");
-                    }
-                }
-            }
-        }
-        if progress && terminal {
-            eprintln!();
-        }
-        for u in &mut self.units {
-            let s = u.inst.terminate();
-            u.check(|| "fmi2Terminate".into(), s, &mut self.warnings)?;
-        }
-        Ok(table)
+/// The most communication steps one run takes (a billion rows would be a CSV of tens of GB per
+/// column group, and hours of stepping: a start or stop time off by orders of magnitude).
+pub const MAX_STEPS: i64 = 1_000_000_000;
+
+/// What an [`Algorithm`] may do with a loaded system during a communication step.
+pub struct Coupling<'a> {
+    system: &'a mut System,
+}
+
+impl Coupling<'_> {
+    /// The number of units.
+    pub fn units(&self) -> usize {
+        self.system.units.len()
+    }
+
+    /// `fmi2DoStep` of unit `k` from `t` by `h` (ticks); its outputs are read again when needed.
+    pub fn do_step(&mut self, k: usize, t: i64, h: i64) -> Result<(), Error> {
+        let u = &mut self.system.units[k];
+        let s = u.inst.do_step(seconds(t), seconds(h));
+        u.fresh = false;
+        u.check(
+            || format!("fmi2DoStep({}, {})", seconds(t), seconds(h)),
+            s,
+            &mut self.system.warnings,
+        )
+    }
+
+    /// Move every connection's value (dependency order) and set the changed inputs.
+    pub fn exchange(&mut self) -> Result<(), Error> {
+        self.system.exchange(Phase::Step).map(|_| ())
+    }
+
+    /// The units in dependency order: a unit after the units feeding it, cycles in SSD order.
+    pub fn dependency_order(&self) -> &[usize] {
+        &self.system.unit_order
     }
 }

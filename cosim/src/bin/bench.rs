@@ -1,0 +1,159 @@
+//! `bench`: nanoseconds per `fmi2DoStep` of bundled FMUs, and per macro step of whole systems in
+//! our master, measured one after another in one run.
+//!
+//! An argument `LABEL|FMU|H|NAME=VALUE,...` measures one FMU (the values set before
+//! initialization); `system|LABEL|PATH|STOP` runs the SSP system at PATH to STOP s with each
+//! algorithm and no observer (best of three), and once with its results streamed to a CSV file.
+
+use dvpp_cosim::master::{self, CsvWriter, End, Observer, Options, Scheme};
+use dvpp_cosim::{Fmu, Status};
+use model_description::BaseType;
+use std::process::ExitCode;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+fn measure(spec: &str) -> Result<(String, f64, usize), String> {
+    let parts: Vec<&str> = spec.split('|').collect();
+    let [label, path, h, sets] = parts.as_slice() else {
+        return Err(format!(
+            "bad benchmark '{spec}': expected LABEL|FMU|H|NAME=VALUE,..."
+        ));
+    };
+    let h: f64 = h.parse().map_err(|_| format!("{label}: bad step '{h}'"))?;
+    let fmu = Arc::new(Fmu::load(std::path::Path::new(path)).map_err(|e| e.to_string())?);
+    let mut i = fmu.instantiate(label).map_err(|e| e.to_string())?;
+    for set in sets.split(',').filter(|s| !s.is_empty()) {
+        let (name, value) = set
+            .split_once('=')
+            .ok_or(format!("{label}: bad setting '{set}'"))?;
+        let var = fmu
+            .description
+            .variable(name)
+            .ok_or(format!("{label}: no variable '{name}'"))?;
+        let x: f64 = value
+            .parse()
+            .map_err(|_| format!("{label}: bad value '{value}'"))?;
+        let vr = [var.value_reference];
+        let s = match var.base_type() {
+            BaseType::Integer => i.set_integer(&vr, &[x as i32]),
+            BaseType::Boolean => i.set_boolean(&vr, &[x != 0.0]),
+            _ => i.set_real(&vr, &[x]),
+        };
+        if s != Status::Ok {
+            return Err(format!("{label}: setting {name}: {:?}", i.last_message()));
+        }
+    }
+    let ok = |s: Status, what: &str, i: &dvpp_cosim::Instance| {
+        if s > Status::Warning {
+            Err(format!("{label}: {what}: {:?}", i.last_message()))
+        } else {
+            Ok(())
+        }
+    };
+    ok(i.setup_experiment(0.0, None), "setup", &i)?;
+    ok(i.enter_initialization_mode(), "enter init", &i)?;
+    ok(i.exit_initialization_mode(), "exit init", &i)?;
+    let mut t = 0.0;
+    let mut steps = 0usize;
+    for _ in 0..1000 {
+        ok(i.do_step(t, h), "step", &i)?;
+        t += h;
+    }
+    let start = Instant::now();
+    while start.elapsed() < Duration::from_millis(500) {
+        for _ in 0..1000 {
+            ok(i.do_step(t, h), "step", &i)?;
+            t += h;
+        }
+        steps += 1000;
+    }
+    Ok((
+        label.to_string(),
+        start.elapsed().as_nanos() as f64 / steps as f64,
+        steps,
+    ))
+}
+
+/// Nanoseconds per macro step of one run of `path` to `stop` with `scheme` and `observers`.
+fn macro_step(
+    path: &std::path::Path,
+    stop: f64,
+    scheme: Scheme,
+    observers: &mut [&mut dyn Observer],
+) -> Result<(f64, u64), String> {
+    let opts = Options {
+        stop: Some(stop),
+        algorithm: scheme,
+        ..Options::default()
+    };
+    let outcome = master::run(path, &opts, observers).map_err(|e| e.to_string())?;
+    if outcome.end != End::Completed {
+        return Err(format!("{}: {:?}", path.display(), outcome.end));
+    }
+    let steps = outcome.samples.saturating_sub(1).max(1);
+    Ok((outcome.run_time.as_nanos() as f64 / steps as f64, steps))
+}
+
+/// `system|LABEL|PATH|STOP`: rows per algorithm (best of three, no observer) and with a CSV.
+fn measure_system(spec: &str) -> Result<Vec<(String, f64, u64)>, String> {
+    let parts: Vec<&str> = spec.split('|').collect();
+    let [_, label, path, stop] = parts.as_slice() else {
+        return Err(format!(
+            "bad benchmark '{spec}': expected system|LABEL|PATH|STOP"
+        ));
+    };
+    let stop: f64 = stop
+        .parse()
+        .map_err(|_| format!("{label}: bad stop '{stop}'"))?;
+    let path = std::path::Path::new(path);
+    let mut rows = Vec::new();
+    for scheme in [Scheme::Jacobi, Scheme::GaussSeidel] {
+        let mut best = (f64::INFINITY, 0);
+        for _ in 0..3 {
+            let (ns, steps) = macro_step(path, stop, scheme, &mut [])?;
+            if ns < best.0 {
+                best = (ns, steps);
+            }
+        }
+        rows.push((format!("{label} ({scheme:?})"), best.0, best.1));
+    }
+    let csv = std::env::temp_dir().join(format!("dvpp-bench-{}.csv", std::process::id()));
+    let mut writer = CsvWriter::new(&csv);
+    let (ns, steps) = macro_step(path, stop, Scheme::Jacobi, &mut [&mut writer])?;
+    let _ = std::fs::remove_file(&csv);
+    rows.push((format!("{label} (Jacobi, streamed CSV)"), ns, steps));
+    Ok(rows)
+}
+
+fn main() -> ExitCode {
+    println!("{:<48} {:>14} {:>10}", "benchmark", "ns/step", "steps");
+    let mut failed = false;
+    for spec in std::env::args().skip(1) {
+        if spec.starts_with("system|") {
+            match measure_system(&spec) {
+                Ok(rows) => {
+                    for (label, ns, steps) in rows {
+                        println!("{label:<48} {ns:>14.1} {steps:>10}");
+                    }
+                }
+                Err(e) => {
+                    eprintln!("bench: {e}");
+                    failed = true;
+                }
+            }
+            continue;
+        }
+        match measure(&spec) {
+            Ok((label, ns, steps)) => println!("{label:<48} {ns:>14.1} {steps:>10}"),
+            Err(e) => {
+                eprintln!("bench: {e}");
+                failed = true;
+            }
+        }
+    }
+    if failed {
+        ExitCode::FAILURE
+    } else {
+        ExitCode::SUCCESS
+    }
+}

@@ -1,0 +1,201 @@
+//! `cosim`: run an SSP system (or one FMU on its own) headless, streaming the results to CSV.
+
+use dvpp_cosim::master::{
+    self, partial_path, CsvWriter, End, Observer, Options, Progress, Recorder, Scheme,
+};
+use dvpp_cosim::{interrupt, Table};
+use dvpp_report::plot::{Figure, Panel, Style};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+const USAGE: &str = "usage: cosim SYSTEM.ssp|SYSTEM_DIR|SYSTEM.ssd|FILE.fmu [--stop T] [--step H]
+             [--algorithm jacobi|gauss-seidel] [--out FILE.csv | --no-csv]
+             [--plot FILE.svg] [--signals component.variable,...]
+
+Simulates an SSP system (an .ssp archive, a directory with SystemStructure.ssd, or an .ssd file)
+from its DefaultExperiment and OSP step size, or one FMU on its own (inputs held at their start
+values), and streams every output to FILE.csv (default: <system name>.csv) as the run goes: a
+`time` column, then one `component.variable` column per output (RFC 4180 quoting, full f64
+precision). Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run that
+fails or is stopped by SIGINT/SIGTERM (at the next communication point) leaves every complete
+row in FILE.csv.partial and exits non-zero (1 on an error, 128 + the signal's number when
+interrupted). --no-csv records nothing (benchmarks). --plot draws the --signals (default: the
+first six columns) against time as an SVG figure; it keeps the results in memory.";
+
+#[derive(Default)]
+struct Args {
+    system: PathBuf,
+    opts: Options,
+    out: Option<PathBuf>,
+    no_csv: bool,
+    plot: Option<PathBuf>,
+    signals: Vec<String>,
+}
+
+fn parse() -> Result<Args, String> {
+    let mut it = std::env::args().skip(1);
+    let mut args = Args::default();
+    let number = |flag: &str, v: Option<String>| -> Result<f64, String> {
+        let v = v.ok_or(format!("{flag} needs a value"))?;
+        v.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .ok_or(format!("{flag} {v}: not a positive number"))
+    };
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--stop" => args.opts.stop = Some(number("--stop", it.next())?),
+            "--step" => args.opts.step = Some(number("--step", it.next())?),
+            "--algorithm" => {
+                let v = it
+                    .next()
+                    .ok_or("--algorithm needs jacobi or gauss-seidel")?;
+                args.opts.algorithm = v.parse::<Scheme>().map_err(|e| e.to_string())?;
+            }
+            "--out" => args.out = Some(it.next().ok_or("--out needs a file")?.into()),
+            "--no-csv" => args.no_csv = true,
+            "--plot" => args.plot = Some(it.next().ok_or("--plot needs a file")?.into()),
+            "--signals" => {
+                let v = it.next().ok_or("--signals needs a list")?;
+                args.signals = v.split(',').map(str::trim).map(String::from).collect();
+            }
+            "-h" | "--help" => return Err(USAGE.into()),
+            s if s.starts_with('-') => return Err(format!("unknown option {s}\n\n{USAGE}")),
+            _ if args.system.as_os_str().is_empty() => args.system = a.into(),
+            _ => return Err(format!("unexpected argument {a}\n\n{USAGE}")),
+        }
+    }
+    if args.system.as_os_str().is_empty() {
+        return Err(USAGE.into());
+    }
+    if args.no_csv && args.out.is_some() {
+        return Err("--out and --no-csv exclude each other".into());
+    }
+    Ok(args)
+}
+
+/// Plot `signals` (all of them existing columns) of `table` against time.
+fn plot(table: &Table, signals: &[String], title: &str, path: &Path) -> Result<(), String> {
+    let time = table.column("time").ok_or("no time column")?;
+    let mut panel = Panel::new(title, "time (s)", "value");
+    for s in signals {
+        let y = table
+            .column(s)
+            .ok_or_else(|| format!("--signals: no column '{s}' (see the CSV header)"))?;
+        panel = panel.series(s.as_str(), &time, &y, Style::Solid);
+    }
+    Figure::new(title)
+        .panel(panel)
+        .save(path)
+        .map_err(|e| format!("{}: {e}", path.display()))
+}
+
+/// The name results are filed under: the FMU's file stem or the system's.
+fn stem(path: &Path) -> String {
+    path.file_stem()
+        .and_then(|s| s.to_str())
+        .unwrap_or("system")
+        .to_owned()
+}
+
+fn main() -> ExitCode {
+    // Like other command-line tools, end quietly when the reader of stdout goes away
+    // (`cosim ... | head`) instead of panicking in println!.
+    // SAFETY: restores the default disposition of SIGPIPE before any thread starts.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+    interrupt::install();
+    let args = match parse() {
+        Ok(a) => a,
+        Err(e) => {
+            eprintln!("cosim: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let name = stem(&args.system);
+    let out = (!args.no_csv).then(|| {
+        args.out
+            .clone()
+            .unwrap_or_else(|| PathBuf::from(format!("{name}.csv")))
+    });
+    let mut csv = out.as_deref().map(CsvWriter::new);
+    let mut progress = Progress::default();
+    let mut recorder = args.plot.as_ref().map(|_| Recorder::default());
+    let mut observers: Vec<&mut dyn Observer> = vec![&mut progress];
+    if let Some(c) = csv.as_mut() {
+        observers.push(c);
+    }
+    if let Some(r) = recorder.as_mut() {
+        observers.push(r);
+    }
+    let outcome = match master::run(&args.system, &args.opts, &mut observers) {
+        Ok(o) => o,
+        Err(e) => {
+            eprintln!("cosim: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    drop(observers);
+    if !outcome.warnings.is_empty() {
+        eprintln!("cosim: {} warning(s), see above", outcome.warnings.len());
+    }
+    let rows = csv.as_ref().map_or(0, |c| c.rows());
+    let partial = |out: &Path| {
+        format!(
+            "{rows} complete rows up to t = {} s in {}",
+            outcome.simulated,
+            partial_path(out).display()
+        )
+    };
+    match &outcome.end {
+        End::Completed => {
+            let run = outcome.run_time.as_secs_f64();
+            println!(
+                "{name}: loaded in {:.3} s; initialized and simulated {} s in {run:.3} s ({:.0}x real time)",
+                outcome.load_time.as_secs_f64(),
+                outcome.simulated,
+                outcome.simulated / run
+            );
+            if let Some(out) = &out {
+                println!(
+                    "{name}: {} steps, {} columns -> {}",
+                    outcome.samples.saturating_sub(1),
+                    outcome.columns,
+                    out.display()
+                );
+            }
+        }
+        End::Interrupted { signal, at } => {
+            eprintln!("cosim: {name}: interrupted by signal {signal} at t = {at} s");
+            if let Some(out) = &out {
+                eprintln!("cosim: incomplete results: {}", partial(out));
+            }
+            return ExitCode::from((128 + signal).clamp(1, 255) as u8);
+        }
+        End::Failed { error, at } => {
+            eprintln!("cosim: {error}");
+            if outcome.samples > 0 {
+                eprintln!("cosim: {name}: the run stopped after t = {at} s");
+                if let Some(out) = &out {
+                    eprintln!("cosim: incomplete results: {}", partial(out));
+                }
+            }
+            return ExitCode::FAILURE;
+        }
+    }
+    if let (Some(path), Some(r)) = (&args.plot, &recorder) {
+        let table = &r.table;
+        let signals = if args.signals.is_empty() {
+            table.columns.iter().skip(1).take(6).cloned().collect()
+        } else {
+            args.signals.clone()
+        };
+        if let Err(e) = plot(table, &signals, &name, path) {
+            eprintln!("cosim: {e}");
+            return ExitCode::FAILURE;
+        }
+        println!("plot -> {}", path.display());
+    }
+    ExitCode::SUCCESS
+}

@@ -1,0 +1,207 @@
+//! Observers of a run: what the master hands each communication point to (CSV file, progress,
+//! an in-memory table), so that a new output never touches the simulate loop.
+
+use super::Error;
+use crate::table::{write_header, write_row, Table};
+use std::io::{BufWriter, IsTerminal};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// What a run is, as observers see it before the first sample.
+#[derive(Debug, Clone)]
+pub struct RunInfo<'a> {
+    /// The system's name.
+    pub system: &'a str,
+    /// `time`, then `component.variable` of every recorded output.
+    pub columns: &'a [String],
+    /// Start and stop time, s.
+    pub start: f64,
+    pub stop: f64,
+}
+
+/// How a run ended.
+#[derive(Debug, Clone, PartialEq)]
+pub enum End {
+    /// It reached the stop time.
+    Completed,
+    /// A signal (SIGINT, SIGTERM) stopped it at the communication point `at`, s.
+    Interrupted { signal: i32, at: f64 },
+    /// An error stopped it; `at` is the last communication point recorded, s.
+    Failed { at: f64, error: String },
+}
+
+/// Receives the results of a run as they are produced.
+pub trait Observer {
+    /// Once, after initialization and before the first sample.
+    fn start(&mut self, run: &RunInfo) -> Result<(), Error>;
+    /// One communication point: `row[0]` is the time (s), then the columns' values.
+    fn sample(&mut self, row: &[f64]) -> Result<(), Error>;
+    /// Once, however the run ended (also after an error in `start` or `sample`).
+    fn finish(&mut self, end: &End) -> Result<(), Error>;
+}
+
+/// The whole run in memory (tests, the demo's metrics): memory grows with the run's length.
+#[derive(Debug, Default)]
+pub struct Recorder {
+    pub table: Table,
+}
+
+impl Observer for Recorder {
+    fn start(&mut self, run: &RunInfo) -> Result<(), Error> {
+        self.table.columns = run.columns.to_vec();
+        Ok(())
+    }
+
+    fn sample(&mut self, row: &[f64]) -> Result<(), Error> {
+        self.table.rows.push(row.to_vec());
+        Ok(())
+    }
+
+    fn finish(&mut self, _: &End) -> Result<(), Error> {
+        Ok(())
+    }
+}
+
+/// The CSV file of a run, written as it goes through a buffer.
+///
+/// Rows go to `<path>.partial` and the file is renamed to `path` only when the run completes:
+/// a file named `path` is always a complete run, and a `.partial` file (left by an interrupted
+/// or failed run) holds every complete row up to where the run stopped; a run that stops before
+/// its first row leaves no file. An existing file at `path` is replaced only by a complete run.
+pub struct CsvWriter {
+    path: PathBuf,
+    partial: PathBuf,
+    out: Option<BufWriter<std::fs::File>>,
+    rows: u64,
+}
+
+impl CsvWriter {
+    pub fn new(path: &Path) -> CsvWriter {
+        CsvWriter {
+            path: path.to_path_buf(),
+            partial: partial_path(path),
+            out: None,
+            rows: 0,
+        }
+    }
+
+    /// Rows written so far.
+    pub fn rows(&self) -> u64 {
+        self.rows
+    }
+
+    fn io(&self, e: std::io::Error) -> Error {
+        Error(format!("{}: {e}", self.partial.display()))
+    }
+}
+
+/// Where [`CsvWriter`] keeps the rows of `path` until the run completes.
+pub fn partial_path(path: &Path) -> PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(".partial");
+    PathBuf::from(name)
+}
+
+impl Observer for CsvWriter {
+    fn start(&mut self, run: &RunInfo) -> Result<(), Error> {
+        let file = std::fs::File::create(&self.partial).map_err(|e| self.io(e))?;
+        let mut out = BufWriter::with_capacity(1 << 16, file);
+        write_header(&mut out, run.columns).map_err(|e| self.io(e))?;
+        self.out = Some(out);
+        Ok(())
+    }
+
+    fn sample(&mut self, row: &[f64]) -> Result<(), Error> {
+        if let Some(out) = self.out.as_mut() {
+            if let Err(e) = write_row(out, row) {
+                return Err(self.io(e));
+            }
+            self.rows += 1;
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, end: &End) -> Result<(), Error> {
+        let Some(out) = self.out.take() else {
+            return Ok(());
+        };
+        // Flushing complete rows only: a row is written whole into the buffer before the next.
+        let file = out.into_inner().map_err(|e| self.io(e.into_error()))?;
+        file.sync_data().map_err(|e| self.io(e))?;
+        drop(file);
+        if *end != End::Completed && self.rows == 0 {
+            // Nothing to keep: the run stopped before its first communication point.
+            return std::fs::remove_file(&self.partial).map_err(|e| self.io(e));
+        }
+        if *end == End::Completed {
+            std::fs::rename(&self.partial, &self.path).map_err(|e| {
+                Error(format!(
+                    "cannot rename {} to {}: {e}",
+                    self.partial.display(),
+                    self.path.display()
+                ))
+            })?;
+        }
+        Ok(())
+    }
+}
+
+/// Progress on stderr: a line rewritten in place on a terminal, every 25 % otherwise.
+pub struct Progress {
+    name: String,
+    start: f64,
+    span: f64,
+    shown: i32,
+    terminal: bool,
+    started: Instant,
+}
+
+impl Default for Progress {
+    fn default() -> Self {
+        Progress {
+            name: String::new(),
+            start: 0.0,
+            span: 1.0,
+            shown: 0,
+            terminal: std::io::stderr().is_terminal(),
+            started: Instant::now(),
+        }
+    }
+}
+
+impl Observer for Progress {
+    fn start(&mut self, run: &RunInfo) -> Result<(), Error> {
+        self.name = run.system.to_owned();
+        self.start = run.start;
+        self.span = run.stop - run.start;
+        self.started = Instant::now();
+        Ok(())
+    }
+
+    fn sample(&mut self, row: &[f64]) -> Result<(), Error> {
+        let t = row[0];
+        let percent = ((t - self.start) / self.span * 100.0) as i32;
+        let every = if self.terminal { 1 } else { 25 };
+        if percent >= self.shown + every {
+            self.shown = percent - percent % every;
+            let line = format!(
+                "{}: {percent:3}% (t = {t:.3} s, {:.1} s wall)",
+                self.name,
+                self.started.elapsed().as_secs_f64()
+            );
+            if self.terminal {
+                eprint!("\r{line}");
+            } else {
+                eprintln!("{line}");
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(&mut self, _: &End) -> Result<(), Error> {
+        if self.terminal && self.shown > 0 {
+            eprintln!();
+        }
+        Ok(())
+    }
+}

@@ -489,7 +489,7 @@ impl Model for GridFmu {
     fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
         if !self.step_logged {
             if let Some(note) = self.grid.internal_step_note() {
-                ctx.event(note);
+                ctx.warn(note);
             }
             self.step_logged = true;
         }

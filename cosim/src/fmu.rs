@@ -428,6 +428,13 @@ impl Instance {
             .unwrap_or_default()
     }
 
+    /// Whether the FMU logged anything since the last [`Instance::take_log`] (one atomic load:
+    /// the master asks after every call).
+    #[inline]
+    pub fn has_log(&self) -> bool {
+        self.sink.held.load(Ordering::Acquire) != 0
+    }
+
     /// The messages logged since the last call (they are removed from the record).
     pub fn take_log(&self) -> Vec<LogRecord> {
         if self.sink.held.load(Ordering::Acquire) == 0 {

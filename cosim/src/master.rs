@@ -384,6 +384,9 @@ impl Unit {
 
     /// Print the unit's new log messages with its name; keep warnings and the last message.
     fn drain_log(&mut self, warnings: &mut Vec<String>) {
+        if !self.inst.has_log() {
+            return;
+        }
         for r in self.inst.take_log() {
             let line = format!(
                 "[{}] {:?} {}: {}",

@@ -326,7 +326,10 @@ fn bench() -> Result {
     let _ = std::fs::remove_dir_all(&foreign);
     let fmus = dvpp_e2e::foreign::build_foreign(&foreign);
     let (ring, _) = dvpp_e2e::foreign::system(&foreign, "ring", &fmus);
-    c.arg(format!("system|ring of three C lags|{}|10", ring.display()));
+    c.arg(format!(
+        "system|ring of three C lags|{}|300",
+        ring.display()
+    ));
     c.arg(format!("system|case1_load|{}|20", ssp.display()));
     for b in BENCHES {
         let sets: Vec<String> = b.set.iter().map(|(n, v)| format!("{n}={v}")).collect();

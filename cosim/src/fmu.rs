@@ -608,6 +608,12 @@ impl Instance {
         (status, (!s.is_null()).then_some(SavedState(s)))
     }
 
+    /// `fmi2GetFMUstate` into a state this FMU made before (overwritten, no allocation).
+    pub fn update_state(&mut self, s: &mut SavedState) -> Status {
+        // SAFETY: out-pointer to a state of this FMU asks for an overwrite.
+        Status::from_c(unsafe { (self.api().get_fmu_state)(self.component, &mut s.0) })
+    }
+
     pub fn set_state(&mut self, s: &SavedState) -> Status {
         // SAFETY: a state this FMU made.
         Status::from_c(unsafe { (self.api().set_fmu_state)(self.component, s.0) })

@@ -17,7 +17,7 @@
 mod algorithm;
 mod observer;
 
-pub use algorithm::{Algorithm, GaussSeidel, Jacobi};
+pub use algorithm::{Algorithm, GaussSeidel, Iterative, Jacobi};
 pub use observer::{partial_path, CsvWriter, End, Observer, Progress, Recorder, RunInfo};
 
 use crate::fmu::{Fmu, Instance, Status};
@@ -39,14 +39,17 @@ pub enum Scheme {
     Jacobi,
     /// [`GaussSeidel`]: units step one after the other in dependency order.
     GaussSeidel,
+    /// [`Iterative`]: each step repeated from saved states until the exchanged values settle.
+    Iterative,
 }
 
 impl Scheme {
-    /// The algorithm this name stands for.
+    /// The algorithm this name stands for, with the default settings.
     pub fn algorithm(self) -> Box<dyn Algorithm> {
         match self {
             Scheme::Jacobi => Box::new(Jacobi),
             Scheme::GaussSeidel => Box::new(GaussSeidel),
+            Scheme::Iterative => Box::new(Iterative::new()),
         }
     }
 }
@@ -57,8 +60,9 @@ impl std::str::FromStr for Scheme {
         match s {
             "jacobi" => Ok(Scheme::Jacobi),
             "gauss-seidel" => Ok(Scheme::GaussSeidel),
+            "iterative" => Ok(Scheme::Iterative),
             _ => Err(Error(format!(
-                "unknown algorithm '{s}': jacobi or gauss-seidel"
+                "unknown algorithm '{s}': jacobi, gauss-seidel or iterative"
             ))),
         }
     }
@@ -123,6 +127,16 @@ pub fn run(
     opts: &Options,
     observers: &mut [&mut dyn Observer],
 ) -> Result<Outcome, Error> {
+    run_with(path, opts, &mut *opts.algorithm.algorithm(), observers)
+}
+
+/// [`run`] with an algorithm of the caller's (e.g. an [`Iterative`] with its own tolerances).
+pub fn run_with(
+    path: &Path,
+    opts: &Options,
+    algorithm: &mut dyn Algorithm,
+    observers: &mut [&mut dyn Observer],
+) -> Result<Outcome, Error> {
     let started = std::time::Instant::now();
     // An unpacked .ssp lives as long as its FMUs are loaded (they are unpacked again each).
     let mut system = if path.extension().is_some_and(|e| e == "fmu") {
@@ -132,8 +146,7 @@ pub fn run(
     };
     let load_time = started.elapsed();
     let columns = system.columns().len() - 1;
-    let mut algorithm = opts.algorithm.algorithm();
-    let (end, samples, simulated) = system.simulate_with(opts, &mut *algorithm, observers)?;
+    let (end, samples, simulated) = system.simulate_with(opts, algorithm, observers)?;
     Ok(Outcome {
         end,
         warnings: system.warnings,
@@ -943,6 +956,26 @@ impl System {
         }
         self.initialize(start, stop)
             .map_err(|e| Error(format!("during initialization: {e}")))?;
+        algorithm.start(&mut Coupling { system: self })?;
+        let result = self.advance(start, stop, step, algorithm, observers, last, samples);
+        if let Some(report) = algorithm.finish(&mut Coupling { system: self }) {
+            eprintln!("cosim: {report}");
+        }
+        result
+    }
+
+    /// Sample, step, repeat until the stop time (or a signal).
+    #[allow(clippy::too_many_arguments)]
+    fn advance(
+        &mut self,
+        start: i64,
+        stop: i64,
+        step: i64,
+        algorithm: &mut dyn Algorithm,
+        observers: &mut [&mut dyn Observer],
+        last: &mut Option<i64>,
+        samples: &mut u64,
+    ) -> Result<Option<i32>, Error> {
         let mut t = start;
         loop {
             self.sample(t)?;
@@ -1068,5 +1101,95 @@ impl Coupling<'_> {
     /// The units in dependency order: a unit after the units feeding it, cycles in SSD order.
     pub fn dependency_order(&self) -> &[usize] {
         &self.system.unit_order
+    }
+
+    /// The value each connection carried at its last exchange, in SSD order, into `out`.
+    pub fn connection_values(&self, out: &mut Vec<f64>) {
+        out.clear();
+        out.extend(self.system.links.iter().map(|l| l.last.unwrap_or(f64::NAN)));
+    }
+
+    /// The components whose FMU cannot save and restore its state
+    /// (`canGetAndSetFMUstate` false).
+    pub fn without_state(&self) -> Vec<&str> {
+        self.system
+            .units
+            .iter()
+            .filter(|u| {
+                !u.inst
+                    .fmu()
+                    .description
+                    .co_simulation
+                    .as_ref()
+                    .is_some_and(|cs| cs.can_get_and_set_fmu_state)
+            })
+            .map(|u| u.name.as_str())
+            .collect()
+    }
+
+    /// Save every unit's state into `states` (made on the first call, overwritten after).
+    pub fn save(&mut self, states: &mut Vec<crate::fmu::SavedState>) -> Result<(), Error> {
+        let sys = &mut *self.system;
+        for (k, u) in sys.units.iter_mut().enumerate() {
+            let s = match states.get_mut(k) {
+                Some(saved) => u.inst.update_state(saved),
+                None => {
+                    let (s, saved) = u.inst.get_state();
+                    if let Some(saved) = saved {
+                        states.push(saved);
+                    }
+                    s
+                }
+            };
+            u.check(|| "fmi2GetFMUstate".into(), s, &mut sys.warnings)?;
+        }
+        Ok(())
+    }
+
+    /// Restore every unit from `states` (as saved by [`Coupling::save`]) and mark every
+    /// connection unsent, so that the next exchange sets every input again (a restored FMU holds
+    /// the inputs it had when saved).
+    pub fn restore(&mut self, states: &[crate::fmu::SavedState]) -> Result<(), Error> {
+        let sys = &mut *self.system;
+        for (u, saved) in sys.units.iter_mut().zip(states) {
+            let s = u.inst.set_state(saved);
+            u.fresh = false;
+            u.check(|| "fmi2SetFMUstate".into(), s, &mut sys.warnings)?;
+        }
+        for l in &mut sys.links {
+            l.last = None;
+        }
+        Ok(())
+    }
+
+    /// Set every connection's destination input to `values` (in SSD order, as
+    /// [`Coupling::connection_values`] gives them) without reading any output.
+    pub fn set_inputs(&mut self, values: &[f64]) -> Result<(), Error> {
+        let sys = &mut *self.system;
+        for (link, &v) in sys.links.iter_mut().zip(values) {
+            link.last = Some(v);
+            let unit = &mut sys.units[link.dst];
+            unit.push(link.dst_vr, link.ty, v);
+            if link.feeds[Phase::Step as usize] {
+                unit.fresh = false;
+            }
+        }
+        for u in &mut sys.units {
+            u.flush(&mut sys.warnings)?;
+        }
+        Ok(())
+    }
+
+    /// Free the states saved by [`Coupling::save`].
+    pub fn free(&mut self, states: &mut Vec<crate::fmu::SavedState>) {
+        for (u, saved) in self.system.units.iter_mut().zip(states.drain(..)) {
+            let _ = u.inst.free_state(saved);
+        }
+    }
+
+    /// Record a warning (printed now, counted in the run's warnings).
+    pub fn warn(&mut self, message: String) {
+        eprintln!("cosim: warning: {message}");
+        self.system.warnings.push(message);
     }
 }

@@ -120,7 +120,9 @@ fn reference(algorithm: Algorithm) -> Reference {
         // The exact lag for an input held over [t_k, t_k+1].
         let seen = match algorithm {
             Algorithm::Jacobi => k,
-            Algorithm::GaussSeidel => k + 1,
+            // A converged iterative step sees the end-of-step value, as Gauss-Seidel does on a
+            // chain without feedback (these FMUs cannot roll back, so it is never run here).
+            Algorithm::GaussSeidel | Algorithm::Iterative => k + 1,
         };
         let u1 = FACTOR * source[seen] + SHIFT;
         lag.push(a1 * lag[k] + (1.0 - a1) * K1 * u1);
@@ -157,7 +159,7 @@ fn switch_time(algorithm: Algorithm) -> f64 {
     let first = (T_STEP / H).ceil();
     match algorithm {
         Algorithm::Jacobi => first * H,
-        Algorithm::GaussSeidel => (first - 1.0) * H,
+        Algorithm::GaussSeidel | Algorithm::Iterative => (first - 1.0) * H,
     }
 }
 

@@ -9,14 +9,19 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 const USAGE: &str = "usage: cosim SYSTEM.ssp|SYSTEM_DIR|SYSTEM.ssd|FILE.fmu [--stop T] [--step H]
-             [--algorithm jacobi|gauss-seidel] [--out FILE.csv | --no-csv]
+             [--algorithm jacobi|gauss-seidel|iterative [--tolerance RTOL]
+             [--relaxation W] [--max-iterations N]] [--out FILE.csv | --no-csv]
              [--plot FILE.svg] [--signals component.variable,...]
 
 Simulates an SSP system (an .ssp archive, a directory with SystemStructure.ssd, or an .ssd file)
 from its DefaultExperiment and OSP step size, or one FMU on its own (inputs held at their start
 values), and streams every output to FILE.csv (default: <system name>.csv) as the run goes: a
 `time` column, then one `component.variable` column per output (RFC 4180 quoting, full f64
-precision). Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run that
+precision). Jacobi (default) steps every unit from the same inputs; gauss-seidel one after the
+other in dependency order; iterative repeats each step from the saved FMU states until the
+exchanged values settle (--tolerance: relative, default 1e-4, absolute 1e-3 of it; each new
+attempt moves --relaxation (default 0.5) of the way to the values obtained; at most
+--max-iterations, default 30), which removes the exchange delay at the cost of the attempts. Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run that
 fails or is stopped by SIGINT/SIGTERM (at the next communication point) leaves every complete
 row in FILE.csv.partial and exits non-zero (1 on an error, 128 + the signal's number when
 interrupted). --no-csv records nothing (benchmarks). --plot draws the --signals (default: the
@@ -28,13 +33,17 @@ struct Args {
     opts: Options,
     out: Option<PathBuf>,
     no_csv: bool,
+    iterative: master::Iterative,
     plot: Option<PathBuf>,
     signals: Vec<String>,
 }
 
 fn parse() -> Result<Args, String> {
     let mut it = std::env::args().skip(1);
-    let mut args = Args::default();
+    let mut args = Args {
+        iterative: master::Iterative::new(),
+        ..Args::default()
+    };
     let number = |flag: &str, v: Option<String>| -> Result<f64, String> {
         let v = v.ok_or(format!("{flag} needs a value"))?;
         v.parse::<f64>()
@@ -49,11 +58,24 @@ fn parse() -> Result<Args, String> {
             "--algorithm" => {
                 let v = it
                     .next()
-                    .ok_or("--algorithm needs jacobi or gauss-seidel")?;
+                    .ok_or("--algorithm needs jacobi, gauss-seidel or iterative")?;
                 args.opts.algorithm = v.parse::<Scheme>().map_err(|e| e.to_string())?;
             }
             "--out" => args.out = Some(it.next().ok_or("--out needs a file")?.into()),
             "--no-csv" => args.no_csv = true,
+            "--tolerance" => {
+                args.iterative.rtol = number("--tolerance", it.next())?;
+                args.iterative.atol = 1e-3 * args.iterative.rtol;
+            }
+            "--relaxation" => args.iterative.relaxation = number("--relaxation", it.next())?,
+            "--max-iterations" => {
+                let v = it.next().ok_or("--max-iterations needs a value")?;
+                args.iterative.max_iterations = v
+                    .parse()
+                    .ok()
+                    .filter(|n| *n > 0)
+                    .ok_or(format!("--max-iterations {v}: not a positive whole number"))?;
+            }
             "--plot" => args.plot = Some(it.next().ok_or("--plot needs a file")?.into()),
             "--signals" => {
                 let v = it.next().ok_or("--signals needs a list")?;
@@ -106,7 +128,7 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     interrupt::install();
-    let args = match parse() {
+    let mut args = match parse() {
         Ok(a) => a,
         Err(e) => {
             eprintln!("cosim: {e}");
@@ -129,7 +151,13 @@ fn main() -> ExitCode {
     if let Some(r) = recorder.as_mut() {
         observers.push(r);
     }
-    let outcome = match master::run(&args.system, &args.opts, &mut observers) {
+    let mut builtin = args.opts.algorithm.algorithm();
+    let algorithm: &mut dyn master::Algorithm = if args.opts.algorithm == Scheme::Iterative {
+        &mut args.iterative
+    } else {
+        &mut *builtin
+    };
+    let outcome = match master::run_with(&args.system, &args.opts, algorithm, &mut observers) {
         Ok(o) => o,
         Err(e) => {
             eprintln!("cosim: {e}");

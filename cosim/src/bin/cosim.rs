@@ -19,8 +19,8 @@ values), and streams every output to FILE.csv (default: <system name>.csv) as th
 `time` column, then one `component.variable` column per output (RFC 4180 quoting, full f64
 precision). Jacobi (default) steps every unit from the same inputs; gauss-seidel one after the
 other in dependency order; iterative repeats each step from the saved FMU states until the
-exchanged values settle (--tolerance: relative, default 1e-4, absolute 1e-3 of it; each new
-attempt moves --relaxation (default 0.5) of the way to the values obtained; at most
+exchanged values settle (--tolerance: relative, default 1e-2, absolute 1e-3 of it; each new
+attempt moves --relaxation (default 1) of the way to the values obtained; at most
 --max-iterations, default 30), which removes the exchange delay at the cost of the attempts. Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run that
 fails or is stopped by SIGINT/SIGTERM (at the next communication point) leaves every complete
 row in FILE.csv.partial and exits non-zero (1 on an error, 128 + the signal's number when

@@ -63,14 +63,18 @@ impl Algorithm for GaussSeidel {
 /// `atol + rtol·|value|`) or `max_iterations` attempts were made. A converged step has no
 /// exchange delay: every unit stepped with the inputs the others reach at the step's end. A step
 /// where nothing moves converges at the first attempt, without a rollback. Each further attempt
-/// starts from `used + relaxation·(obtained - used)`.
+/// starts from `used + ω·(obtained - used)`, ω adapted by Aitken's Δ² rule (dynamic
+/// relaxation, as partitioned fluid-structure solvers use it).
 #[derive(Default)]
 pub struct Iterative {
     pub rtol: f64,
     pub atol: f64,
     pub max_iterations: u32,
-    /// The next attempt's inputs: `used + relaxation·(obtained - used)`, in (0, 1].
+    /// The second attempt's inputs are `used + relaxation·(obtained - used)`, `relaxation` in
+    /// (0, 1]; later attempts adapt the factor (Aitken).
     pub relaxation: f64,
+    residual: Vec<f64>,
+    factor: f64,
     states: Vec<SavedState>,
     used: Vec<f64>,
     got: Vec<f64>,
@@ -81,16 +85,17 @@ pub struct Iterative {
 }
 
 impl Iterative {
-    /// Tolerances 1e-4 (relative) and 1e-7 (absolute), relaxation 0.5, at most 30 attempts per
-    /// step. Without relaxation the attempts of case study I oscillate and diverge after its load
-    /// step (the reactive-power loop through the grid and the units' PI controllers has a
-    /// fixed-point gain beyond 1 at a 1 ms step); with 0.5 they converge in about 12-19.
+    /// Tolerances 1e-2 (relative) and 1e-5 (absolute), first relaxation 1, at most 30 attempts
+    /// per step. On case study I at a 1 ms step this takes about 8 attempts per step and matches
+    /// a 0.1 ms Jacobi run; tighter tolerances cost many more attempts (the fixed-point
+    /// iteration through the grid's and the units' voltage loops contracts slowly) for no
+    /// visible gain. Without the Aitken factor the attempts oscillate and do not converge.
     pub fn new() -> Iterative {
         Iterative {
-            rtol: 1e-4,
-            atol: 1e-7,
+            rtol: 1e-2,
+            atol: 1e-5,
             max_iterations: 30,
-            relaxation: 0.5,
+            relaxation: 1.0,
             ..Iterative::default()
         }
     }
@@ -146,6 +151,8 @@ impl Algorithm for Iterative {
     fn step(&mut self, system: &mut Coupling<'_>, t: i64, h: i64) -> Result<(), Error> {
         system.save(&mut self.states)?;
         system.connection_values(&mut self.used);
+        self.residual.clear();
+        self.residual.resize(self.used.len(), 0.0);
         self.steps += 1;
         let mut attempts = 0;
         loop {
@@ -168,9 +175,24 @@ impl Algorithm for Iterative {
                 break;
             }
             system.restore(&self.states)?;
-            let w = self.relaxation;
-            for (u, g) in self.used.iter_mut().zip(&self.got) {
-                *u += w * (g - *u);
+            // The residual r = obtained - used. After the first attempt the factor is
+            // `relaxation`; then Aitken's Δ² rule adapts it from the last two residuals,
+            // ω_k = -ω_{k-1} r_{k-1}·(r_k - r_{k-1}) / |r_k - r_{k-1}|², within [0.01, 1].
+            let (mut num, mut den) = (0.0, 0.0);
+            for k in 0..self.used.len() {
+                let r = self.got[k] - self.used[k];
+                let dr = r - self.residual[k];
+                num += self.residual[k] * dr;
+                den += dr * dr;
+                self.residual[k] = r;
+            }
+            self.factor = if attempts == 1 || den == 0.0 {
+                self.relaxation
+            } else {
+                (-self.factor * num / den).clamp(0.01, 1.0)
+            };
+            for (u, r) in self.used.iter_mut().zip(&self.residual) {
+                *u += self.factor * r;
             }
             system.set_inputs(&self.used)?;
         }

@@ -162,6 +162,7 @@ pub struct Der {
     e: Real,
     df: Real,
     p_ref: Real,
+    p_set: Real,
     q_ref: Real,
     p_avail: Real,
     v_dc: Real,
@@ -574,6 +575,7 @@ impl Der {
         s[self.e] = e0;
         s[self.df] = 0.0;
         s[self.p_ref] = p;
+        s[self.p_set] = p;
         s[self.q_ref] = q;
         s[self.p_avail] = self.available(s, 0.0);
         s[self.v_dc] = 1.0;
@@ -964,6 +966,12 @@ impl Model for Der {
                 "pu",
                 "grid-following: active power reference on S_base; grid-forming: the active set point (dispatch curtailed to P_avail)",
             ),
+            p_set: out(
+                v,
+                ports::P_SET,
+                "pu",
+                "the unit's active set point on S_base: the dispatch, curtailed to what the primary source allows (deload * P_avail - G_dc); the operator measures the DVPP's response against the sum of these",
+            ),
             q_ref: out(
                 v,
                 ports::Q_REF,
@@ -1046,6 +1054,7 @@ impl Der {
         let s_max = s[self.s_rated] / s[self.s_base];
         // The set point: the dispatch, curtailed to what the primary source allows (a cloud lowers it).
         let p_set = rt.p0.min(self.headroom_limit(s, t));
+        s[self.p_set] = p_set;
         match &mut rt.channel {
             Channel::Forming(f) => {
                 match rt.p_kind {

@@ -28,6 +28,8 @@ pub const P_REF: &str = "p_ref";
 pub const Q_REF: &str = "q_ref";
 /// Output: available active power of the primary source.
 pub const P_AVAIL: &str = "P_avail";
+/// Output: the active set point (dispatch curtailed by the primary source).
+pub const P_SET: &str = "p_set";
 
 /// Parameter: converter rating, MVA.
 pub const S_RATED: &str = "S_rated";
@@ -85,7 +87,7 @@ mod tests {
         for p in [P, Q, V, V_ANGLE, MU_P, MU_Q] {
             check(p, Causality::Input);
         }
-        for p in [THETA, E, P_REF, Q_REF, P_AVAIL] {
+        for p in [THETA, E, P_REF, Q_REF, P_AVAIL, P_SET] {
             check(p, Causality::Output);
         }
         for p in [

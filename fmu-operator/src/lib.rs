@@ -10,7 +10,9 @@
 //! - a complement unit receives the low-pass gains it complements (`mu_p_lpf[j]`);
 //! - optional rate limit and communication delay that keep both sums exact;
 //! - the desired aggregate response `ref.df = -T_pf Δp_pcc`, `ref.dv = -T_qv Δq_pcc` (on the
-//!   `S_dvpp` base, changes since initialization) and the matching errors `err.df`, `err.dv`.
+//!   `S_dvpp` base, changes since initialization; `Δp_pcc` is taken against the DVPP's summed
+//!   set point `Σ der[k].p_set`, so a set point lowered by the primary source counts as the
+//!   disturbance it is) and the matching errors `err.df`, `err.dv`.
 //!
 //! A DER split into a grid-forming and a grid-following part (case study II) appears as two
 //! entries whose `share` (ε and 1 - ε) scales its availability and its rating.
@@ -119,6 +121,7 @@ impl OperatorConfig {
 struct DerVars {
     p_avail: Real,
     p: Real,
+    p_set: Real,
     s_rated: Real,
     mu_p: Option<Real>,
     mu_q: Real,
@@ -186,6 +189,8 @@ pub struct Operator {
     t_pf: Option<LtiSimulator>,
     /// PCC operating point at initialization: p, q, v.
     pcc0: [f64; 3],
+    /// The DVPP's summed active set point at initialization, on S_base.
+    p_set0: f64,
     /// Gains currently sent, and gains waiting out the communication delay (time, gains).
     sent: Option<Gains>,
     queue: VecDeque<(f64, Gains)>,
@@ -193,6 +198,11 @@ pub struct Operator {
 }
 
 impl Operator {
+    /// The DVPP's summed active set point, on S_base.
+    fn set_point(&self, s: &Store) -> f64 {
+        self.ders.iter().map(|d| s[d.p_set]).sum()
+    }
+
     fn low_pass(&self) -> impl Iterator<Item = usize> + '_ {
         self.config
             .ders
@@ -413,6 +423,14 @@ impl Model for Operator {
                     "pu",
                     &format!("active power of {who}, on S_base (for its PQ capability)"),
                 )),
+                p_set: v.real(Spec::input(
+                    &ports::der_p_set(k + 1),
+                    0.0,
+                    "pu",
+                    &format!(
+                        "active set point of {who}, on S_base: a change of the DVPP's summed set point is not a disturbance of ref.df"
+                    ),
+                )),
                 mu_p: None,
                 mu_q: Real(0),
                 mu_p_lpf: Vec::new(),
@@ -537,6 +555,7 @@ impl Model for Operator {
             ),
             t_pf: None,
             pcc0: [0.0, 0.0, 1.0],
+            p_set0: 0.0,
             sent: None,
             queue: VecDeque::new(),
             warned: Vec::new(),
@@ -554,6 +573,7 @@ impl Model for Operator {
             .map_err(|e| ModelError(format!("parameters 'Tdes.H', 'Tdes.D', 'Tdes.Dq': {e}")))?;
         self.t_pf = Some(tdes.pf_simulator(Hold::Zero));
         self.pcc0 = [s[self.pcc_p], s[self.pcc_q], s[self.pcc_v]];
+        self.p_set0 = self.set_point(s);
         self.warned.clear();
         self.queue.clear();
         let gains = self.target(s, ctx)?;
@@ -596,8 +616,11 @@ impl Model for Operator {
         self.write_gains(s, &next);
         self.sent = Some(next);
 
-        // Desired response on the DVPP base, input held over the step.
-        let dp = (s[self.pcc_p] - self.pcc0[0]) * s[self.s_base] / s[self.s_dvpp];
+        // Desired response on the DVPP base, input held over the step: the PCC power's deviation
+        // from the DVPP's summed set point (a cloud that lowers a unit's set point is the same
+        // disturbance as a load step of that size).
+        let dp_set = self.set_point(s) - self.p_set0;
+        let dp = (s[self.pcc_p] - self.pcc0[0] - dp_set) * s[self.s_base] / s[self.s_dvpp];
         let t_pf = self.t_pf.as_mut().expect("initialized");
         s[self.ref_df] = -t_pf.step(dp, h);
         s[self.ref_dv] = self.desired_dv(s);

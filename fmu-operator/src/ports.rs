@@ -20,6 +20,11 @@ pub fn der_p(k: usize) -> String {
     der(k, "p")
 }
 
+/// Input: the active set point of DER `k`.
+pub fn der_p_set(k: usize) -> String {
+    der(k, "p_set")
+}
+
 /// Input: reactive power of DER `k` (1-based).
 pub fn der_q(k: usize) -> String {
     der(k, "q")

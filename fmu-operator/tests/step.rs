@@ -220,6 +220,39 @@ fn ref_df_follows_t_pf_applied_to_the_pcc_power_change() {
 }
 
 #[test]
+fn a_lowered_set_point_is_the_same_disturbance_as_a_pcc_power_increase() {
+    // Two operators at the same point: one sees the PCC power rise by 0.28 pu, the other sees
+    // the PV's set point fall by 0.28 pu (a cloud) with the PCC power unchanged.
+    let start = [
+        ("pcc.p", 0.6),
+        ("der[1].p_set", 0.2),
+        ("der[2].p_set", 0.3),
+        ("der[3].p_set", 0.1),
+    ];
+    let (mut load, mut cloud) = (operator(&start), operator(&start));
+    load.step(DT);
+    cloud.step(DT);
+    load.set("pcc.p", 0.88);
+    cloud.set("der[2].p_set", 0.02);
+    for _ in 0..200 {
+        load.step(DT);
+        cloud.step(DT);
+        let (a, b) = (load.get("ref.df"), cloud.get("ref.df"));
+        assert!(a < 0.0, "a deficit lowers the desired frequency: {a}");
+        close(b, a, 1e-15, format_args!("ref.df at t = {}", cloud.time()));
+    }
+    // A set point and the PCC power that move together are no disturbance at all.
+    let mut both = operator(&start);
+    both.step(DT);
+    both.set("pcc.p", 0.32);
+    both.set("der[2].p_set", 0.02);
+    for _ in 0..50 {
+        both.step(DT);
+        close(both.get("ref.df"), 0.0, 1e-15, "ref.df");
+    }
+}
+
+#[test]
 fn a_split_unit_shares_its_availability_by_its_parts() {
     // A hybrid DVPP: unit A split into a grid-forming part (ε = 0.3) and a grid-following one.
     let config = r#"

@@ -47,6 +47,25 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
         );
     }
 
+    // The cloud against its own desired response: the operator takes Δp_pcc against the
+    // DVPP's summed set point, so the PV's lowered set point is the disturbance.
+    let c = cloud.metrics();
+    println!(
+        "case1_cloud: NRMSE f {:.2} %, v {:.2} %",
+        c.f_nrmse * 100.0,
+        c.v_nrmse * 100.0
+    );
+    assert!(
+        c.f_nrmse <= 0.05,
+        "case1_cloud: frequency NRMSE {:.2} %",
+        c.f_nrmse * 100.0
+    );
+    assert!(
+        c.v_nrmse <= 0.10,
+        "case1_cloud: voltage NRMSE {:.2} %",
+        c.v_nrmse * 100.0
+    );
+
     // The cloud against the load step, at every instant of the run.
     assert_eq!(load.time.len(), cloud.time.len());
     let gap = max_gap(&cloud.df, &load.df, 0);

@@ -422,6 +422,7 @@ impl Job<'_, '_> {
             let avail = start_of(md, der::P_AVAIL0).unwrap_or(0.0);
             start.insert(op::der_p_avail(k), real(avail));
             start.insert(op::der_p(k), real(grid.pf.der[k - 1].p));
+            start.insert(op::der_p_set(k), real(grid.pf.der[k - 1].p));
             start.insert(op::der_q(k), real(grid.pf.der[k - 1].q));
         }
         let pcc = &grid.pf.pcc;
@@ -492,6 +493,7 @@ fn operator_measurements(d: &DerUnit, _: usize) -> Vec<Wire> {
     let (n, k) = (d.unit.name.as_str(), d.slot);
     vec![
         wire(n, der::P_AVAIL, OPERATOR, &op::der_p_avail(k)),
+        wire(n, der::P_SET, OPERATOR, &op::der_p_set(k)),
         wire(GRID, &grid::der_p(k), OPERATOR, &op::der_p(k)),
         wire(GRID, &grid::der_q(k), OPERATOR, &op::der_q(k)),
     ]
@@ -754,9 +756,9 @@ mod tests {
     #[test]
     fn shipped_scenarios_wire_outputs_to_inputs() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
-        // Per DER: 4 measurements, 2 drives, 3 to the operator, mu_q; mu_p of the 2 low-pass
+        // Per DER: 4 measurements, 2 drives, 4 to the operator, mu_q; mu_p of the 2 low-pass
         // units, their 2 gains to the complement; 4 PCC measurements.
-        assert_wired(&dir.join("case1_load.toml"), 3 * 10 + 2 + 2 + 4);
+        assert_wired(&dir.join("case1_load.toml"), 3 * 11 + 2 + 2 + 4);
         assert_wired(&dir.join("ieee9.toml"), 0);
     }
 
@@ -781,8 +783,8 @@ mod tests {
             text += &format!("[[der]]\nname = \"{name}\"\npreset = \"{preset}\"\n");
         }
         std::fs::write(&path, text).unwrap();
-        // 6 DERs of 10 connections; 4 low-pass mu_p; 2 complements of 4 gains; 4 PCC.
-        assert_wired(&path, 6 * 10 + 4 + 2 * 4 + 4);
+        // 6 DERs of 11 connections; 4 low-pass mu_p; 2 complements of 4 gains; 4 PCC.
+        assert_wired(&path, 6 * 11 + 4 + 2 * 4 + 4);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -105,7 +105,7 @@ struct Reference {
     lag2: Vec<f64>,
 }
 
-/// The reference for our master's coupling (see tests/src/master.rs): initialization exchanges
+/// The reference for our master's coupling (see cosim/src/master.rs): initialization exchanges
 /// until every input is consistent, so at t = 0 gain.y = G * y0. Each communication point ends
 /// with an exchange in dependency order, so the feedthrough gain always shows G * lag.y of the
 /// same point, and every input is held (zero-order) over the next step. Jacobi steps all units

@@ -909,19 +909,12 @@ impl System {
             }
             started.push(k);
         }
-        let mut last = None;
-        let mut samples = 0;
+        let mut tally = Tally::default();
         if result.is_ok() {
-            result = self.drive(
-                start,
-                stop,
-                step,
-                algorithm,
-                observers,
-                &mut last,
-                &mut samples,
-            );
+            let span = Span { start, stop, step };
+            result = self.drive(span, algorithm, observers, &mut tally);
         }
+        let Tally { last, samples } = tally;
         let at = last.map_or(seconds(start), seconds);
         let end = match result {
             Ok(None) => End::Completed,
@@ -939,25 +932,21 @@ impl System {
         Ok((end, samples, at - seconds(start)))
     }
 
-    /// The run itself: `Ok(Some(signal))` when interrupted; `last` is the last point recorded.
-    #[allow(clippy::too_many_arguments)]
+    /// The run itself: `Ok(Some(signal))` when interrupted; `tally` counts what was recorded.
     fn drive(
         &mut self,
-        start: i64,
-        stop: i64,
-        step: i64,
+        span: Span,
         algorithm: &mut dyn Algorithm,
         observers: &mut [&mut dyn Observer],
-        last: &mut Option<i64>,
-        samples: &mut u64,
+        tally: &mut Tally,
     ) -> Result<Option<i32>, Error> {
         if let Some(signal) = interrupt::requested() {
             return Ok(Some(signal));
         }
-        self.initialize(start, stop)
+        self.initialize(span.start, span.stop)
             .map_err(|e| Error(format!("during initialization: {e}")))?;
         algorithm.start(&mut Coupling { system: self })?;
-        let result = self.advance(start, stop, step, algorithm, observers, last, samples);
+        let result = self.advance(span, algorithm, observers, tally);
         if let Some(report) = algorithm.finish(&mut Coupling { system: self }) {
             eprintln!("cosim: {report}");
         }
@@ -965,16 +954,12 @@ impl System {
     }
 
     /// Sample, step, repeat until the stop time (or a signal).
-    #[allow(clippy::too_many_arguments)]
     fn advance(
         &mut self,
-        start: i64,
-        stop: i64,
-        step: i64,
+        Span { start, stop, step }: Span,
         algorithm: &mut dyn Algorithm,
         observers: &mut [&mut dyn Observer],
-        last: &mut Option<i64>,
-        samples: &mut u64,
+        tally: &mut Tally,
     ) -> Result<Option<i32>, Error> {
         let mut t = start;
         loop {
@@ -982,8 +967,8 @@ impl System {
             for o in observers.iter_mut() {
                 o.sample(&self.row)?;
             }
-            *last = Some(t);
-            *samples += 1;
+            tally.last = Some(t);
+            tally.samples += 1;
             if t >= stop {
                 break;
             }
@@ -1069,6 +1054,21 @@ impl System {
 /// The most communication steps one run takes (a billion rows would be a CSV of tens of GB per
 /// column group, and hours of stepping: a start or stop time off by orders of magnitude).
 pub const MAX_STEPS: i64 = 1_000_000_000;
+
+/// A run's start, stop and step, ticks.
+#[derive(Clone, Copy)]
+struct Span {
+    start: i64,
+    stop: i64,
+    step: i64,
+}
+
+/// What a run has recorded: the last communication point, and how many.
+#[derive(Default)]
+struct Tally {
+    last: Option<i64>,
+    samples: u64,
+}
 
 /// What an [`Algorithm`] may do with a loaded system during a communication step.
 pub struct Coupling<'a> {

@@ -1,4 +1,4 @@
-//! Shared helpers of the end-to-end tests: where the bundled FMUs are, and loading them.
+//! Shared helpers of the end-to-end tests and the bench: the bundled FMUs and the `cosim` binary (made on demand), loading FMUs, and the foreign C FMUs.
 
 use dvpp_cosim::{Fmu, Instance, Status};
 use std::path::{Path, PathBuf};

@@ -29,9 +29,24 @@ pub enum GridError {
     },
     Init(String),
     SingularNetwork,
+    /// The network solution did not converge (in practice: the voltages collapsed). `bus` is
+    /// the bus with the lowest voltage magnitude `v_min` (pu) over the last two iterates,
+    /// `mismatch_bus` the bus whose voltage changed most in the last iteration (`residual`, pu);
+    /// both are bus ids of the case.
     NetworkNotConverged {
         t: f64,
         residual: f64,
+        bus: u32,
+        v_min: f64,
+        mismatch_bus: u32,
+    },
+    /// A machine or grid-forming DER slot (`unit`: `machine SG1`, `DER slot 2`) drifted more
+    /// than [`LOSS_OF_SYNCHRONISM_ANGLE`] from the centre-of-inertia angle: `angle` is its
+    /// rotor (slot: internal voltage) angle minus the COI angle, rad.
+    LossOfSynchronism {
+        t: f64,
+        unit: String,
+        angle: f64,
     },
     BadSlot {
         index: usize,
@@ -74,10 +89,39 @@ impl fmt::Display for GridError {
             ),
             GridError::Init(m) => write!(f, "initialization failed: {m}"),
             GridError::SingularNetwork => write!(f, "network admittance matrix is singular"),
-            GridError::NetworkNotConverged { t, residual } => {
+            GridError::NetworkNotConverged {
+                t,
+                residual,
+                bus,
+                v_min,
+                mismatch_bus,
+            } => {
+                let t = round_time(*t);
+                let cause = if *v_min < CONST_POWER_V_MIN {
+                    "voltage collapse: "
+                } else {
+                    ""
+                };
                 write!(
                     f,
-                    "network solution did not converge at t = {t} s (residual {residual:e})"
+                    "t = {t} s: {cause}the network solution did not converge (residual \
+                     {residual:.3e} pu at bus {mismatch_bus}); lowest voltage {v_min:.3} pu at \
+                     bus {bus}"
+                )
+            }
+            GridError::LossOfSynchronism { t, unit, angle } => {
+                let t = round_time(*t);
+                let what = if unit.starts_with("machine") {
+                    "rotor angle"
+                } else {
+                    "internal voltage angle"
+                };
+                let side = if *angle >= 0.0 { "ahead of" } else { "behind" };
+                write!(
+                    f,
+                    "t = {t} s: {unit} lost synchronism: its {what} is {:.2} rad {side} the \
+                     centre of inertia (limit π)",
+                    angle.abs()
                 )
             }
             GridError::BadSlot { index, reason } => write!(f, "DER slot {index}: {reason}"),
@@ -103,6 +147,17 @@ impl fmt::Display for GridError {
 }
 
 impl std::error::Error for GridError {}
+
+/// A time for messages: rounded to the microsecond, so that sums of steps print as `3.412`.
+fn round_time(t: f64) -> f64 {
+    (t * 1e6).round() / 1e6
+}
+
+/// Angle between a machine's rotor (or a grid-forming slot's internal voltage) and the centre
+/// of inertia beyond which the unit has lost synchronism, rad: π, the pole slip (the
+/// electrical power it exchanges with the rest of the grid has changed sign, and a first-swing
+/// stable system stays well inside it).
+pub const LOSS_OF_SYNCHRONISM_ANGLE: f64 = PI;
 
 impl From<CaseError> for GridError {
     fn from(e: CaseError) -> Self {
@@ -638,6 +693,58 @@ impl Grid {
         out.loss_p = loss;
         out.balance_p = gen - load - loss;
         out
+    }
+
+    /// Centre-of-inertia angle, rad, frame at f_nom: the mean rotor angle of the in-service
+    /// machines weighted by their inertia constants on S_base (the weights of `coi_f`); None
+    /// without machines in service.
+    pub fn coi_angle(&self) -> Option<f64> {
+        let (mut hd, mut hs) = (0.0, 0.0);
+        for m in self.machines.iter().filter(|m| m.in_service) {
+            hd += m.h * m.own(&self.x)[state::DELTA];
+            hs += m.h;
+        }
+        (hs > 0.0).then(|| hd / hs)
+    }
+
+    /// Loss of synchronism: every in-service machine's rotor angle and every grid-forming slot's
+    /// internal voltage angle θ (both in the frame rotating at f_nom, as the COI angle) must lie
+    /// within [`LOSS_OF_SYNCHRONISM_ANGLE`] of the centre-of-inertia angle. The first unit
+    /// beyond it (machines first) is returned as [`GridError::LossOfSynchronism`]. Without
+    /// machines in service there is no centre of inertia and nothing to check. Reads the states
+    /// only.
+    pub fn check_synchronism(&self) -> Result<(), GridError> {
+        let Some(coi) = self.coi_angle() else {
+            return Ok(());
+        };
+        let lost = |unit: String, angle: f64| GridError::LossOfSynchronism {
+            t: self.t,
+            unit,
+            angle,
+        };
+        for (j, m) in self.machines.iter().enumerate() {
+            if !m.in_service {
+                continue;
+            }
+            let rel = m.own(&self.x)[state::DELTA] - coi;
+            // a NaN angle counts as lost too
+            if rel.abs() > LOSS_OF_SYNCHRONISM_ANGLE || rel.is_nan() {
+                let name = match &self.case.machines[j].name {
+                    Some(n) => format!("machine {n}"),
+                    None => format!("machine {}", j + 1),
+                };
+                return Err(lost(name, rel));
+            }
+        }
+        for (k, d) in self.ders.iter().enumerate() {
+            if let DerInput::GridForming { theta, .. } = d.input {
+                let rel = theta - coi;
+                if rel.abs() > LOSS_OF_SYNCHRONISM_ANGLE || rel.is_nan() {
+                    return Err(lost(format!("DER slot {}", k + 1), rel));
+                }
+            }
+        }
+        Ok(())
     }
 
     /// Current bus voltages (complex, frame at f_nom).

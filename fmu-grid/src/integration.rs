@@ -184,6 +184,10 @@ impl Grid {
 
     /// Integrate from `t` to `t + h` (FMI doStep semantics). Events fire when their time is
     /// reached; the internal step is at most [`Grid::internal_step`].
+    ///
+    /// After every internal step the angles are checked against the centre of inertia (see
+    /// [`Grid::check_synchronism`]): a unit that lost synchronism ends the step with
+    /// [`GridError::LossOfSynchronism`] at the time of that internal step.
     pub fn step(&mut self, t: f64, h: f64) -> Result<(), GridError> {
         if !(h >= 0.0 && h.is_finite() && t.is_finite()) {
             return Err(GridError::InvalidStep { t, h });
@@ -212,6 +216,7 @@ impl Grid {
             for i in 0..ns {
                 self.rk4(hs)?;
                 self.t = t0 + (i + 1) as f64 * hs;
+                self.check_synchronism()?;
             }
             self.t = seg_end;
         }

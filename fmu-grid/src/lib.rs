@@ -36,6 +36,7 @@ pub use case::{Case, CaseError, DerKind, Event, LoadModel};
 pub use events::{EventOverride, EventState};
 pub use grid::{
     DerInput, DerOutput, DerSetpoint, Grid, GridError, MachineOutput, Outputs, PccOutput,
+    LOSS_OF_SYNCHRONISM_ANGLE,
 };
 pub use integration::{MAX_INTERNAL_STEP, MIN_INTERNAL_STEP, STEPS_PER_TIME_CONSTANT};
 pub use network::CONST_POWER_V_MIN;

@@ -108,6 +108,15 @@ pub(crate) struct Network {
     sources: Vec<(usize, DVector<C64>)>,
 }
 
+/// The bus with the lowest finite voltage magnitude: (index, magnitude); (0, NaN) if none.
+fn lowest_voltage<'a>(v: impl Iterator<Item = &'a C64>) -> (usize, f64) {
+    v.map(|v| v.norm())
+        .enumerate()
+        .filter(|(_, m)| m.is_finite())
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .unwrap_or((0, f64::NAN))
+}
+
 /// Angle wrapped to (-π, π].
 pub(crate) fn wrap(a: f64) -> f64 {
     let mut a = a % (2.0 * PI);
@@ -230,7 +239,11 @@ impl Grid {
             }
         }
         let mut residual = f64::INFINITY;
-        for _ in 0..NET_MAX_ITER {
+        // The weakest bus (index, voltage magnitude) of the last two iterates, for the error.
+        let mut weakest = (0, f64::NAN);
+        // The bus whose voltage moved most in the last iteration.
+        let mut worst = 0;
+        for it in 0..NET_MAX_ITER {
             w.cur.clear();
             w.cur.resize(n, C64::new(0.0, 0.0));
             let cur = &mut w.cur;
@@ -290,10 +303,27 @@ impl Grid {
                 .map(|i| (vn[i] - v[i]).norm_sqr())
                 .fold(0.0, f64::max)
                 .sqrt();
-            v.copy_from_slice(vn);
             if !residual.is_finite() {
+                weakest = lowest_voltage(v.iter());
+                worst = (0..n)
+                    .find(|&i| !(vn[i] - v[i]).norm().is_finite())
+                    .unwrap_or(0);
                 break;
             }
+            if it + 1 == NET_MAX_ITER {
+                worst = (0..n)
+                    .max_by(|&a, &b| (vn[a] - v[a]).norm().total_cmp(&(vn[b] - v[b]).norm()))
+                    .unwrap_or(0);
+                // a fixed-point iteration that did not settle may oscillate between two iterates
+                weakest = lowest_voltage(v.iter().zip(vn.iter()).map(|(a, b)| {
+                    if b.norm() < a.norm() {
+                        b
+                    } else {
+                        a
+                    }
+                }));
+            }
+            v.copy_from_slice(vn);
             if !iterate || residual < NET_TOL {
                 // Stator solutions, with the rotations of the machines in service from `sal`.
                 w.alg.clear();
@@ -309,9 +339,14 @@ impl Grid {
                 return Ok(());
             }
         }
+        let (i_min, v_min) = weakest;
+        let id = |i: usize| self.case.buses.get(i).map_or(0, |b| b.id);
         Err(GridError::NetworkNotConverged {
             t: self.t,
             residual,
+            bus: id(i_min),
+            v_min,
+            mismatch_bus: id(worst),
         })
     }
 

@@ -90,3 +90,37 @@ fn a_tripped_generator_is_out_of_service_in_the_outputs() {
     assert!(h.get("coi.f") < 1.0, "the grid lost a generator");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn a_machine_that_loses_synchronism_ends_the_step_with_an_error_naming_it() {
+    // SG3 dispatched at 150 MW, then line 5–6 trips: it slips a pole in the first swing.
+    let dir = std::env::temp_dir().join(format!("fmu-grid-slip-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let case = fmu_grid::case::builtin_text("ieee9").expect("the built-in ieee9");
+    let case = case.replacen("p_mw = 85.0", "p_mw = 150.0", 1);
+    std::fs::write(dir.join("case.toml"), case).unwrap();
+    std::fs::write(
+        dir.join("config.toml"),
+        "[model]\ncase_file = \"case.toml\"\n[[model.event]]\ntype = \"line_trip\"\n\
+         time = 1.0\nbranch = \"L5-6\"\n",
+    )
+    .unwrap();
+    let mut h = Harness::<GridFmu>::with_resources(&dir);
+    assert_eq!(h.init(), Status::Ok, "{:?}", h.log());
+    let mut status = Status::Ok;
+    for _ in 0..500 {
+        status = h.do_step(h.time(), 0.01);
+        if status != Status::Ok {
+            break;
+        }
+    }
+    assert_eq!(status, Status::Error, "{:?}", h.log());
+    assert!(
+        h.logged(Status::Error, "machine SG3 lost synchronism"),
+        "{:?}",
+        h.log()
+    );
+    assert!(h.time() > 1.0 && h.time() < 2.5, "t = {}", h.time());
+    let _ = std::fs::remove_dir_all(&dir);
+}

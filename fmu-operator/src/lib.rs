@@ -144,21 +144,45 @@ enum Degenerate {
     NoReactiveCapacity,
 }
 
-/// Warn once per episode: `active` says whether the condition holds now; `warned` remembers
-/// the conditions already reported.
+/// Warn once per episode: `active` says whether the condition holds now, `clear` whether it has
+/// ended (for a threshold, below it by a margin, so that a value hovering at the threshold is
+/// one episode, not one per crossing); `warned` remembers the conditions already reported. The
+/// end of an episode is logged as an event.
 fn warn_once(
     warned: &mut Vec<Degenerate>,
     ctx: &mut Context,
     what: Degenerate,
-    active: bool,
+    (active, clear): (bool, bool),
     message: impl FnOnce() -> String,
 ) {
     let seen = warned.contains(&what);
     if active && !seen {
         warned.push(what);
         ctx.warn(message());
-    } else if !active && seen {
+    } else if clear && seen {
         warned.retain(|w| *w != what);
+        ctx.event(what.ended());
+    }
+}
+
+/// How far below a rating a unit must come back for its over-rating episode to end.
+const RATING_HYSTERESIS: f64 = 0.02;
+
+impl Degenerate {
+    /// The log line of an episode's end.
+    fn ended(&self) -> String {
+        match self {
+            Degenerate::NoAvailability => "low-pass DERs report available power again".into(),
+            Degenerate::NegativeAvailability(k) => {
+                format!("DER {}'s available power is no longer negative", k + 1)
+            }
+            Degenerate::OverRating(k) => format!(
+                "DER {} is back within its rating (below {:.0} % of it)",
+                k + 1,
+                (1.0 - RATING_HYSTERESIS) * 100.0
+            ),
+            Degenerate::NoReactiveCapacity => "DERs have reactive capacity again".into(),
+        }
     }
 }
 
@@ -224,7 +248,7 @@ impl Operator {
                 &mut self.warned,
                 ctx,
                 Degenerate::NegativeAvailability(k),
-                avail < 0.0,
+                (avail < 0.0, avail >= 0.0),
                 || {
                     format!(
                         "DER {} '{name}': negative available power {avail} pu is taken as 0",
@@ -239,7 +263,7 @@ impl Operator {
             &mut self.warned,
             ctx,
             Degenerate::NoAvailability,
-            none,
+            (none, !none),
             || {
                 "all low-pass DERs report zero available power: active dc gains fall back to equal shares".into()
             },
@@ -260,7 +284,10 @@ impl Operator {
                 &mut self.warned,
                 ctx,
                 Degenerate::OverRating(k),
-                p_mw.abs() > rating,
+                (
+                    p_mw.abs() > rating,
+                    p_mw.abs() < (1.0 - RATING_HYSTERESIS) * rating,
+                ),
                 || {
                     format!("DER {} '{name}': |p| = {:.2} MW exceeds its rating {rating:.2} MVA: no reactive capacity", k + 1, p_mw.abs())
                 },
@@ -272,7 +299,7 @@ impl Operator {
             &mut self.warned,
             ctx,
             Degenerate::NoReactiveCapacity,
-            none,
+            (none, !none),
             || {
                 "no DER has reactive capacity left: reactive dc gains fall back to equal shares"
                     .into()

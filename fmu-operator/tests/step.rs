@@ -253,6 +253,36 @@ fn a_lowered_set_point_is_the_same_disturbance_as_a_pcc_power_increase() {
 }
 
 #[test]
+fn a_unit_hovering_at_its_rating_is_one_warning_not_one_per_crossing() {
+    // The wind's rating is 46 MVA on a 100 MVA base: 0.46 pu.
+    let mut h = operator(&[]);
+    h.set_debug_logging(true, &[]);
+    // A warning makes the step return fmi2Warning, which is fine here.
+    let step = |h: &mut Harness<Operator>| {
+        let t = h.time();
+        let s = h.do_step(t, DT);
+        assert!(s <= Status::Warning, "{s:?} at t = {t}: {:?}", h.log());
+    };
+    for k in 0..400 {
+        let wobble = if k % 2 == 0 { 0.005 } else { -0.005 };
+        h.set("der[1].p", 0.46 + wobble);
+        step(&mut h);
+    }
+    assert_eq!(h.warnings().len(), 1, "{:?}", h.warnings());
+    assert!(h.warnings()[0].contains("exceeds its rating"));
+    h.set("der[1].p", 0.40);
+    step(&mut h);
+    assert!(
+        h.logged(Status::Ok, "DER 1 is back within its rating"),
+        "{:?}",
+        h.log()
+    );
+    h.set("der[1].p", 0.50);
+    step(&mut h);
+    assert_eq!(h.warnings().len(), 2, "a new episode is warned again");
+}
+
+#[test]
 fn a_split_unit_shares_its_availability_by_its_parts() {
     // A hybrid DVPP: unit A split into a grid-forming part (ε = 0.3) and a grid-following one.
     let config = r#"

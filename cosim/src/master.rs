@@ -1186,10 +1186,4 @@ impl Coupling<'_> {
             let _ = u.inst.free_state(saved);
         }
     }
-
-    /// Record a warning (printed now, counted in the run's warnings).
-    pub fn warn(&mut self, message: String) {
-        eprintln!("cosim: warning: {message}");
-        self.system.warnings.push(message);
-    }
 }

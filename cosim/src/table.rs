@@ -1,7 +1,6 @@
 //! Results in memory and as CSV, and the master's integer clock (nanosecond ticks).
 
 use std::io::Write;
-use std::path::Path;
 
 /// Simulation results: `time` then one column per recorded variable.
 #[derive(Debug, Clone, Default)]
@@ -15,16 +14,6 @@ impl Table {
     pub fn column(&self, name: &str) -> Option<Vec<f64>> {
         let i = self.columns.iter().position(|c| c == name)?;
         Some(self.rows.iter().map(|r| r[i]).collect())
-    }
-
-    /// Write as CSV ([`write_header`], [`write_row`]) with full `f64` precision.
-    pub fn write_csv(&self, path: &Path) -> std::io::Result<()> {
-        let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
-        write_header(&mut w, &self.columns)?;
-        for row in &self.rows {
-            write_row(&mut w, row)?;
-        }
-        w.flush()
     }
 }
 

@@ -467,7 +467,7 @@ fn too_small_time_constant_is_refused_naming_the_parameter() {
 }
 
 #[test]
-fn tripped_machine_is_out_of_service_and_runs_isolated() {
+fn tripped_machine_is_out_of_service_and_coasts() {
     let case = Case::builtin("ieee9").unwrap();
     let mut g = Grid::new(&case).unwrap();
     g.add_event(Event::GeneratorTrip {

@@ -72,7 +72,11 @@ pub fn cosim() -> PathBuf {
         "--bin",
         "cosim",
     ]);
-    root().join("target").join("release").join("cosim")
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(|d| root().join(d))
+        .unwrap_or_else(|| root().join("target"))
+        .join("release")
+        .join("cosim")
 }
 
 pub const IDS: [&str; 3] = ["dvpp_der", "dvpp_operator", "dvpp_grid"];
@@ -108,7 +112,10 @@ pub fn real_outputs(fmu: &Fmu) -> Vec<u32> {
         .model_variables
         .variables
         .iter()
-        .filter(|v| v.causality() == model_description::Causality::Output)
+        .filter(|v| {
+            v.causality() == model_description::Causality::Output
+                && matches!(v.kind, model_description::VariableKind::Real(_))
+        })
         .map(|v| v.value_reference)
         .collect()
 }

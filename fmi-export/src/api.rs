@@ -16,6 +16,8 @@ use std::os::raw::c_char;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
+pub use crate::uri::resource_path;
+
 fn panic_text(payload: &(dyn std::any::Any + Send)) -> String {
     payload
         .downcast_ref::<&str>()
@@ -92,46 +94,6 @@ unsafe fn c_str<'a>(p: *const c_char) -> Option<&'a str> {
     } else {
         CStr::from_ptr(p).to_str().ok()
     }
-}
-
-/// Decode an FMI resource location (`file:///a%20b`, `file:/a`, `file://localhost/a`, or a plain
-/// path) into a path.
-pub fn resource_path(uri: &str) -> Result<PathBuf, String> {
-    let rest = if let Some(r) = uri.strip_prefix("file://") {
-        if let Some(r) = r.strip_prefix("localhost/") {
-            format!("/{r}")
-        } else if r.starts_with('/') {
-            r.to_owned()
-        } else {
-            return Err(format!("resource location '{uri}' names a remote host"));
-        }
-    } else if let Some(r) = uri.strip_prefix("file:") {
-        r.to_owned()
-    } else if uri.contains("://") {
-        return Err(format!("resource location '{uri}' is not a file URI"));
-    } else {
-        uri.to_owned()
-    };
-    let bytes = rest.as_bytes();
-    let mut out = Vec::with_capacity(bytes.len());
-    let mut i = 0;
-    while i < bytes.len() {
-        if bytes[i] == b'%' {
-            let hex = bytes
-                .get(i + 1..i + 3)
-                .and_then(|h| std::str::from_utf8(h).ok())
-                .and_then(|h| u8::from_str_radix(h, 16).ok())
-                .ok_or_else(|| format!("resource location '{uri}' has a bad percent-escape"))?;
-            out.push(hex);
-            i += 3;
-        } else {
-            out.push(bytes[i]);
-            i += 1;
-        }
-    }
-    let path =
-        String::from_utf8(out).map_err(|_| format!("resource location '{uri}' is not UTF-8"))?;
-    Ok(PathBuf::from(path))
 }
 
 /// `fmi2Instantiate`: NULL (with a log line, when a logger exists) on any problem.

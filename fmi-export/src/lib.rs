@@ -12,6 +12,7 @@ pub mod harness;
 pub mod instance;
 pub mod log;
 pub mod model;
+pub mod uri;
 
 pub use describe::{assert_golden, describe, describe_main, Config, Experiment, CONFIG_FILE};
 pub use ffi::Status;

@@ -3,6 +3,7 @@
 mod catalog;
 mod docs;
 mod scenario;
+mod win64;
 
 use catalog::{BENCHES, FMUS, VARIANTS};
 
@@ -20,6 +21,14 @@ fn root() -> PathBuf {
         .parent()
         .expect("workspace root")
         .to_path_buf()
+}
+
+/// Cargo's target directory: `CARGO_TARGET_DIR` (relative to the workspace root) if set, else
+/// `target/`.
+fn target_dir() -> PathBuf {
+    std::env::var_os("CARGO_TARGET_DIR")
+        .map(|d| root().join(d))
+        .unwrap_or_else(|| root().join("target"))
 }
 
 fn run(cmd: &mut Command) -> Result {
@@ -45,7 +54,9 @@ const USAGE: &str = "usage: cargo xtask <task>
 tasks:
   bundle [ID...]  build the FMUs (all, or those named) in release; write dist/default/<id>.fmu
                   and dist/variants/<id>-<variant>.fmu; with no ID also every shipped scenario
-                  (xtask/scenarios/*.toml) as dist/<scenario>/ with <scenario>.ssp
+                  (xtask/scenarios/*.toml) as dist/<scenario>/ with <scenario>.ssp; each FMU has
+                  binaries/linux64 and, where the x86_64-pc-windows-gnu target and mingw-w64 are
+                  installed (and DVPP_WIN64 is not 0), binaries/win64
   bundle --scenario PATH
                   bundle the scenario file PATH into dist/<its name>/
   cosim SYSTEM.ssp [--stop T] [--step H] [--algorithm jacobi|gauss-seidel] [--out FILE.csv]
@@ -57,7 +68,9 @@ tasks:
            case1_load); ns per fmi2DoStep of each benchmark FMU
   demo     bundle, then run case study I (case1_load, case1_cloud) in our master: CSVs and
            figures in results/, figures in tests/figures/, metrics table into README.md
-  test     bundle, run the Rust tests, then the Python (fmpy) tests in target/venv
+  test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
+           Rust tests (the win64 binaries under wine among them), then the Python (fmpy) tests
+           in target/venv
   docs     regenerate README.md's variable tables from the FMUs' model descriptions";
 
 fn main() -> ExitCode {
@@ -88,19 +101,23 @@ fn main() -> ExitCode {
     }
 }
 
-/// Build the cdylibs and describe binaries of `fmus` with the `ship` profile (release with LTO).
+/// Build the cdylibs and describe binaries of `fmus` with the `ship` profile (release with LTO),
+/// and their win64 cdylibs where the cross toolchain is installed.
 fn build_release(fmus: &[&catalog::Fmu]) -> Result {
     let mut c = cargo();
     c.args(["build", "--profile", "ship"]);
     for fmu in fmus {
         c.args(["--package", fmu.package]);
     }
-    run(&mut c)
+    run(&mut c)?;
+    let packages: Vec<&str> = fmus.iter().map(|f| f.package).collect();
+    win64::build(cargo, "ship", &packages)
 }
 
-/// Write one `.fmu`: modelDescription.xml from the describe binary, the binary, resources.
+/// Write one `.fmu`: modelDescription.xml from the describe binary, the binaries (linux64, and
+/// win64 if built), resources.
 fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result<String> {
-    let release = root().join("target").join("ship");
+    let release = target_dir().join("ship");
     let describe = release.join(format!("{package}-describe"));
     let output = Command::new(&describe)
         .arg(resources)
@@ -114,6 +131,12 @@ fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result<St
     }
     let library = release.join(format!("lib{}.so", package.replace('-', "_")));
     let binary = std::fs::read(&library).map_err(|e| format!("{}: {e}", library.display()))?;
+    let windows = if win64::built() {
+        let dll = win64::library(&target_dir(), "ship", package);
+        Some(std::fs::read(&dll).map_err(|e| format!("{}: {e}", dll.display()))?)
+    } else {
+        None
+    };
 
     let file = std::fs::File::create(out).map_err(|e| format!("{}: {e}", out.display()))?;
     let mut zip = zip::ZipWriter::new(file);
@@ -129,6 +152,9 @@ fn write_fmu(package: &str, id: &str, resources: &Path, out: &Path) -> Result<St
     // it was most of the load time of a system.
     let stored = options.compression_method(zip::CompressionMethod::Stored);
     add(&format!("binaries/linux64/{id}.so"), &binary, stored)?;
+    if let Some(dll) = &windows {
+        add(&format!("binaries/win64/{id}.dll"), dll, stored)?;
+    }
     let mut entries: Vec<_> = std::fs::read_dir(resources)
         .map_err(|e| format!("{}: {e}", resources.display()))?
         .filter_map(|e| e.ok())
@@ -156,11 +182,7 @@ fn bundle_one(
     files: &[PathBuf],
     out: &Path,
 ) -> Result<String> {
-    let resources = root()
-        .join("target")
-        .join("bundle")
-        .join(staging)
-        .join("resources");
+    let resources = target_dir().join("bundle").join(staging).join("resources");
     if resources.exists() {
         std::fs::remove_dir_all(&resources).map_err(|e| e.to_string())?;
     }
@@ -304,7 +326,7 @@ fn cosim_binary() -> Result<PathBuf> {
         "--bin",
         "cosim",
     ]))?;
-    Ok(root().join("target").join("release").join("cosim"))
+    Ok(target_dir().join("release").join("cosim"))
 }
 
 fn bench() -> Result {
@@ -542,6 +564,7 @@ fn python_env() -> Result<PathBuf> {
 
 fn test() -> Result {
     let started = std::time::Instant::now();
+    win64::install_for_tests();
     bundle(&[])?;
     let dist = root().join("dist").join("default");
     let cosim = cosim_binary()?;

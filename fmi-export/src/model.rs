@@ -152,6 +152,14 @@ impl Spec {
         s
     }
 
+    /// A Boolean output (discrete: it changes at communication points only).
+    pub fn boolean_output(name: &str, description: &str) -> Self {
+        let mut s = Spec::output(name, "", description);
+        s.start = Value::Boolean(false);
+        s.variability = Variability::Discrete;
+        s
+    }
+
     /// A parameter that may also change between steps.
     pub fn tunable(mut self) -> Self {
         self.variability = Variability::Tunable;

@@ -19,16 +19,22 @@
 //! its command with the lag `τ_dc` within `[0, P_avail]`, and a dc link (`C_dc`, `G_dc`) whose
 //! voltage `v_dc` a proportional controller (`k_dc`) holds. The control math is `dvpp_control`.
 
+mod dc;
+mod limits;
 pub mod ports;
 mod preset;
 
+pub use limits::priority;
 pub use preset::{Preset, UnitDefaults};
 
+use dc::{DcParams, DcSide};
 use dvpp_control::phasor::internal_voltage;
 use dvpp_control::{
-    Adpf, GflFpModel, GfmPfModel, Hold, LowPassSpec, LtiSimulator, StateSpace, TDes, VqModel,
+    Adpf, Complex, GflFpModel, GfmPfModel, Hold, LowPassSpec, LtiSimulator, StateSpace, TDes,
+    VqModel,
 };
 use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Spec, Store, Variables};
+use limits::Episode;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -77,6 +83,10 @@ struct Forming {
     pf: GfmPfModel,
     /// Integral part of the PI matching controller on `E`.
     e_int: f64,
+    /// The internal voltage node `E∠θ` the controls set; the converter imposes it unless a
+    /// limit acts.
+    e: f64,
+    theta: f64,
 }
 
 /// The grid-following controller state.
@@ -98,8 +108,7 @@ enum Channel {
 struct Runtime {
     channel: Channel,
     vq: VqModel,
-    /// dc side: states `[p_dc - G_dc, v_dc - 1]` (pu on `S_rated`), input `p_ac`.
-    dc: LtiSimulator,
+    dc: DcSide,
     /// Kind of the p-f ADPF (which gains the inputs set).
     p_kind: i32,
     n_lpf: usize,
@@ -113,10 +122,34 @@ struct Runtime {
     df_held: f64,
     /// Grid-forming: the reactive reference held over the next step.
     q_ref: f64,
-    /// Warnings already given in this episode (each once).
-    warned_rating: bool,
-    warned_dc: bool,
+    /// Power the limits withheld at the last step (what the internal voltage would have
+    /// delivered minus what the converter imposed), on S_base: the controls see the unlimited
+    /// power, so the internal node stays synchronized while limited.
+    withheld: (f64, f64),
+    /// Waiting for the terminal voltage (a start from zero voltage); `None` once synchronized.
+    startup: Option<Startup>,
+    /// Time of synchronization after a start from zero voltage (the set point ramps from there).
+    t_sync: Option<f64>,
+    limit: LimitEpisodes,
+    /// Warning already given in this episode.
     warned_gains: bool,
+}
+
+/// A unit waiting for the voltage to appear.
+#[derive(Clone, Serialize, Deserialize)]
+struct Startup {
+    /// Since when the voltage has been above `startup.v_sync` and steady.
+    ok_since: Option<f64>,
+    v_last: f64,
+}
+
+/// The episodes of each limit (the `limit.*` outputs).
+#[derive(Clone, Default, Serialize, Deserialize)]
+struct LimitEpisodes {
+    current: Episode,
+    dc: Episode,
+    source: Episode,
+    modulation: Episode,
 }
 
 /// The DER's variable handles and, after initialization, its controller.
@@ -148,6 +181,15 @@ pub struct Der {
     storage: Boolean,
     deload: Real,
     k_dc: Real,
+    dc_zeta: Real,
+    v_dc_min: Real,
+    v_dc_max: Real,
+    t_budget: Real,
+    i_max: Real,
+    priority: Integer,
+    v_sync: Real,
+    t_hold: Real,
+    ramp: Real,
     p_avail0: Real,
     avail_t: Real,
     avail_dp: Real,
@@ -167,6 +209,19 @@ pub struct Der {
     p_avail: Real,
     v_dc: Real,
     p_dc: Real,
+    i_ac: Real,
+    i_limit: Real,
+    p_min: Real,
+    p_max: Real,
+    e_src: Real,
+    e_ac: Real,
+    e_loss: Real,
+    w_dc: Real,
+    limit_current: Boolean,
+    limit_dc: Boolean,
+    limit_source: Boolean,
+    limit_modulation: Boolean,
+    synchronized: Boolean,
     rt: Option<Runtime>,
 }
 
@@ -178,6 +233,10 @@ pub struct DerConfig {
     /// dc gains become the start values; none: a generic unit with a static ADPF.
     #[serde(default)]
     pub preset: Option<Preset>,
+    /// The unit's rating in MVA when it differs from the preset's (a resized or split unit):
+    /// the preset's available power and dispatch scale with it.
+    #[serde(default)]
+    pub rating: Option<f64>,
 }
 
 /// An error naming the parameter (or input) at fault: `'name' = value: why` or `'name': why`.
@@ -398,19 +457,6 @@ fn pll_model(kp: f64, ki: f64, f_nom: f64) -> StateSpace {
     .expect("PLL realization")
 }
 
-/// dc side around `v_dc = 1`: states `r = p_dc - G_dc`, `w = v_dc - 1`, input `p_ac`:
-/// `τ_dc r' = p_ac + (G_dc - k_dc) w - r` (command: ac power, link losses and the proportional
-/// voltage control), `C_dc w' = r - p_ac - G_dc w`.
-fn dc_model(tau: f64, c: f64, g: f64, k: f64) -> StateSpace {
-    StateSpace::new(
-        DMatrix::from_row_slice(2, 2, &[-1.0 / tau, (g - k) / tau, 1.0 / c, -g / c]),
-        DVector::from_column_slice(&[1.0 / tau, -1.0 / c]),
-        DMatrix::identity(2, 2),
-        DVector::zeros(2),
-    )
-    .expect("dc realization")
-}
-
 impl Der {
     fn lpf_gains(&self, s: &Store) -> [f64; MAX_LPF] {
         let mut out = [0.0; MAX_LPF];
@@ -433,9 +479,7 @@ impl Der {
         &self,
         s: &mut Store,
         ctx: &mut Context,
-        warned_rating: bool,
-        warned_dc: bool,
-        warned_gains: bool,
+        again: Option<bool>,
     ) -> Result<Runtime, ModelError> {
         let mode = s[self.mode];
         for (r, name) in [
@@ -491,7 +535,13 @@ impl Der {
                     .map_err(|e| err(&self.adpf_p.name("kind"), e))?;
                 let vq = VqModel::grid_forming_shaped(&tdes, &adpf_q)
                     .map_err(|e| err(&self.adpf_q.name("kind"), e))?;
-                (Channel::Forming(Box::new(Forming { pf, e_int: 0.0 })), vq)
+                let forming = Forming {
+                    pf,
+                    e_int: 0.0,
+                    e: 0.0,
+                    theta: 0.0,
+                };
+                (Channel::Forming(Box::new(forming)), vq)
             }
             GRID_FOLLOWING => {
                 let fp = GflFpModel::new(&tdes, &adpf_p, pll_tau, pll_order).map_err(|e| {
@@ -527,110 +577,167 @@ impl Der {
             }
         };
 
-        let tau_dc = positive(s, self.tau_dc, "tau_dc")?;
-        let c_dc = positive(s, self.c_dc, "C_dc")?;
-        let (g_dc, k_dc) = (s[self.g_dc], s[self.k_dc]);
-        let mut dc = LtiSimulator::new(dc_model(tau_dc, c_dc, g_dc, k_dc), Hold::Zero);
-
-        // Operating point and the internal voltage behind the transformer (the slot impedance).
-        let (s_base, s_rated) = (s[self.s_base], s[self.s_rated]);
-        let zbase = s_base / s_rated;
-        let (r, x) = (s[self.r_f] * zbase, s[self.x_f] * zbase);
-        let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
-        if v <= 0.0 {
-            return Err(err(
-                "v",
-                format!(
-                    "= {v}: the operating point at initialization needs a terminal voltage > 0"
-                ),
+        let dc = self.dc_params(s)?;
+        if again.is_none() {
+            ctx.event(format!(
+                "dc-voltage control: damping ratio {:.3} without the capacitor-power term, {:.3} with k_d = {:.3}",
+                dc.damping(0.0),
+                dc.damping(dc.k_d()),
+                dc.k_d()
             ));
         }
-        let (e0, theta0) = internal_voltage(p, q, v, s[self.v_angle], r, x);
-        let p_ac = p * s_base / s_rated;
-        dc.set_state(DVector::from_column_slice(&[p_ac, 0.0]), p_ac)
-            .expect("dc state");
+        positive(s, self.i_max, "I_max")?;
+        positive(s, self.e_max, "E_max")?;
 
+        // Operating point and the internal voltage behind the transformer (the slot impedance).
+        let (r, x) = self.slot_impedance(s);
+        let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
+        // Below `startup.v_sync` the unit waits for the voltage (a start from zero voltage).
+        let waiting = v < s[self.v_sync];
+        let (e0, theta0) = if waiting {
+            (v, s[self.v_angle])
+        } else {
+            internal_voltage(p, q, v, s[self.v_angle], r, x)
+        };
+        let p_ac = if waiting {
+            0.0
+        } else {
+            self.converter_power(s, r)
+        };
         let mut rt = Runtime {
             channel,
             vq,
-            dc,
+            dc: DcSide::new(dc, p_ac),
             p_kind,
             n_lpf: self.adpf_p.n_lpf.map_or(0, |n| s[n] as usize),
             q_kind: s[self.adpf_q.kind],
             p0: p,
-            q0: q,
+            q0: if waiting { 0.0 } else { q },
             v0: v,
             e0,
             theta0,
             df_held: 0.0,
-            q_ref: q,
-            warned_rating,
-            warned_dc,
-            warned_gains,
+            q_ref: if waiting { 0.0 } else { q },
+            withheld: (0.0, 0.0),
+            startup: waiting.then_some(Startup {
+                ok_since: None,
+                v_last: v,
+            }),
+            t_sync: None,
+            limit: LimitEpisodes::default(),
+            warned_gains: again.unwrap_or(false),
         };
+        if let Channel::Forming(f) = &mut rt.channel {
+            f.e = e0;
+            f.theta = theta0;
+        }
         s[self.theta] = match &rt.channel {
             Channel::Forming(_) => theta0,
             Channel::Following(_) => s[self.v_angle],
         };
         s[self.e] = e0;
         s[self.df] = 0.0;
-        s[self.p_ref] = p;
-        s[self.p_set] = p;
-        s[self.q_ref] = q;
+        s[self.p_ref] = if waiting { 0.0 } else { p };
+        s[self.p_set] = s[self.p_ref];
+        s[self.q_ref] = rt.q_ref;
         s[self.p_avail] = self.available(s, 0.0);
-        s[self.v_dc] = 1.0;
-        s[self.p_dc] = (p_ac + g_dc) * s_rated / s_base;
+        s[self.synchronized] = !waiting;
+        if waiting && again.is_none() {
+            ctx.event(format!(
+                "v = {v:.4} pu < startup.v_sync = {:.4} pu: waiting for the terminal voltage",
+                s[self.v_sync]
+            ));
+        }
         let limit = self.headroom_limit(s, 0.0);
-        if p > limit + 1e-12 && !rt.warned_dc {
+        if p > limit + 1e-12 && again.is_none() {
             ctx.warn(format!(
                 "dispatch p = {p:.4} pu is above deload * P_avail - G_dc = {limit:.4} pu: the set point is curtailed from the first step"
             ));
         }
-        self.check_limits(s, &mut rt, ctx);
+        self.write_dc(s, &rt);
+        self.write_limits(s, &rt);
         Ok(rt)
+    }
+
+    /// The dc side's parameters, checked.
+    fn dc_params(&self, s: &Store) -> Result<DcParams, ModelError> {
+        let tau = positive(s, self.tau_dc, "tau_dc")?;
+        let c = positive(s, self.c_dc, "C_dc")?;
+        let t_budget = positive(s, self.t_budget, "dc.t_budget")?;
+        let (v_min, v_max) = (s[self.v_dc_min], s[self.v_dc_max]);
+        if !((0.0..1.0).contains(&v_min) && v_max > 1.0) {
+            return Err(err(
+                "v_dc_min",
+                format!("= {v_min} with v_dc_max = {v_max}: needs 0 <= v_dc_min < 1 < v_dc_max"),
+            ));
+        }
+        Ok(DcParams {
+            tau,
+            c,
+            g: s[self.g_dc],
+            k_dc: s[self.k_dc],
+            zeta: s[self.dc_zeta],
+            storage: s[self.storage],
+            v_min,
+            v_max,
+            t_budget,
+        })
+    }
+
+    /// The slot impedance `R_f + j X_f` on S_base.
+    fn slot_impedance(&self, s: &Store) -> (f64, f64) {
+        let zbase = s[self.s_base] / s[self.s_rated];
+        (s[self.r_f] * zbase, s[self.x_f] * zbase)
+    }
+
+    /// The power the converter's ac side draws from its dc link, pu on S_rated: the measured
+    /// terminal power and, for a grid-forming unit, the loss in `R_f` between them.
+    fn converter_power(&self, s: &Store, r: f64) -> f64 {
+        let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
+        let r_loss = if s[self.mode] == GRID_FORMING && v > 0.0 {
+            r * (p * p + q * q) / (v * v)
+        } else {
+            0.0
+        };
+        (p + r_loss) * s[self.s_base] / s[self.s_rated]
+    }
+
+    /// The dc side's outputs.
+    fn write_dc(&self, s: &mut Store, rt: &Runtime) {
+        let (s_base, s_rated) = (s[self.s_base], s[self.s_rated]);
+        s[self.v_dc] = rt.dc.v_dc();
+        s[self.p_dc] = rt.dc.p_src() * s_rated / s_base;
+        // Energies in MJ: pu·s on S_rated times S_rated in MVA.
+        s[self.e_src] = rt.dc.e_src * s_rated;
+        s[self.e_ac] = rt.dc.e_ac * s_rated;
+        s[self.e_loss] = rt.dc.e_loss * s_rated;
+        s[self.w_dc] = rt.dc.energy() * s_rated;
+        let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
+        s[self.i_ac] = p.hypot(q) / v.max(limits::V_FLOOR) * s_base / s_rated;
+        // The dc budget at the terminal: less the R_f loss at the present current.
+        let (r, _) = self.slot_impedance(s);
+        let r_loss = if s[self.mode] == GRID_FORMING {
+            r * (p * p + q * q) / v.max(limits::V_FLOOR).powi(2)
+        } else {
+            0.0
+        };
+        let (lo, hi) = rt.dc.ac_budget();
+        s[self.p_min] = lo * s_rated / s_base - r_loss;
+        s[self.p_max] = hi * s_rated / s_base - r_loss;
+        s[self.i_limit] = s[self.i_max];
+    }
+
+    /// The limit flags.
+    fn write_limits(&self, s: &mut Store, rt: &Runtime) {
+        s[self.limit_current] = rt.limit.current.active();
+        s[self.limit_dc] = rt.limit.dc.active();
+        s[self.limit_source] = rt.limit.source.active();
+        s[self.limit_modulation] = rt.limit.modulation.active();
     }
 
     /// The highest set point the primary source allows at `t`: `deload · P_avail - G_dc`, on S_base.
     fn headroom_limit(&self, s: &Store, t: f64) -> f64 {
         s[self.deload] * self.available(s, t) - s[self.g_dc] * s[self.s_rated] / s[self.s_base]
-    }
-
-    /// Apparent power against the rating and the dc source against its availability.
-    fn check_limits(&self, s: &mut Store, rt: &mut Runtime, ctx: &mut Context) {
-        let s_max = s[self.s_rated] / s[self.s_base];
-        let apparent = s[self.p].hypot(s[self.q]);
-        if apparent > s_max * (1.0 + 1e-9) && !rt.warned_rating {
-            rt.warned_rating = true;
-            ctx.warn(format!(
-                "converter rating reached: |p + jq| = {apparent:.4} pu > S_rated/S_base = {s_max:.4} pu"
-            ));
-        }
-        let (g_dc, to_rated) = (s[self.g_dc], s[self.s_base] / s[self.s_rated]);
-        let cap = s[self.p_avail] * to_rated;
-        let x = rt.dc.state();
-        let p_dc = x[0] + g_dc;
-        let floor = if s[self.storage] { -cap } else { 0.0 };
-        let limited = p_dc.clamp(floor, cap);
-        let mut w = x[1];
-        if w < -1.0 {
-            w = -1.0;
-        }
-        if limited != p_dc || w != x[1] {
-            let u = p_dc;
-            rt.dc
-                .set_state(DVector::from_column_slice(&[limited - g_dc, w]), u)
-                .expect("dc state");
-            if !rt.warned_dc {
-                rt.warned_dc = true;
-                ctx.warn(format!(
-                    "dc source limited: command {:.4} pu outside [{floor:.4}, P_avail = {cap:.4}] pu on S_rated",
-                    p_dc
-                ));
-            }
-        }
-        let x = rt.dc.state();
-        s[self.v_dc] = 1.0 + x[1];
-        s[self.p_dc] = (x[0] + g_dc) / to_rated;
     }
 }
 
@@ -645,7 +752,7 @@ impl Model for Der {
         _: Option<&std::path::Path>,
         v: &mut Variables,
     ) -> Result<Self, String> {
-        let u = UnitDefaults::of(config.preset);
+        let u = UnitDefaults::of(config.preset).resized(config.rating)?;
         let io = [ports::P, ports::Q, ports::V, ports::V_ANGLE];
         let par = |v: &mut Variables, name: &str, start: f64, unit: &str, desc: &str, min: f64| {
             v.real(Spec::parameter(name, start, unit, desc).min(min))
@@ -773,7 +880,7 @@ impl Model for Der {
                 "E_max",
                 1.5,
                 "pu",
-                "grid-forming: largest internal voltage magnitude the converter can impose (E in [0, E_max])",
+                "grid-forming: modulation limit, the largest voltage magnitude the converter can impose at the nominal dc voltage (E <= E_max * v_dc)",
             )
             .min(0.0),
         );
@@ -809,7 +916,91 @@ impl Model for Der {
             "dc-link conductance (losses) on S_rated",
             0.0,
         );
-        let k_dc = par(v, "k_dc", 100.0, "pu", "dc-voltage control gain", 0.0);
+        let k_dc = par(
+            v,
+            "k_dc",
+            100.0,
+            "pu",
+            "dc-voltage control gain (source power per pu of v_dc deviation)",
+            0.0,
+        );
+        let dc_zeta = v.real(
+            Spec::parameter(
+                "dc.zeta",
+                0.7,
+                "1",
+                "damping ratio the dc-voltage control's capacitor-power term gives the k_dc, C_dc, tau_dc loop (0: no damping term)",
+            )
+            .range(0.0, 2.0),
+        );
+        let v_dc_min = v.real(
+            Spec::parameter(
+                "v_dc_min",
+                0.8,
+                "pu",
+                "lowest dc-link voltage the ac side may draw the link down to (below it the ac power is held to what the source gives)",
+            )
+            .range(0.0, 1.0),
+        );
+        let v_dc_max = v.real(
+            Spec::parameter(
+                "v_dc_max",
+                1.2,
+                "pu",
+                "highest dc-link voltage the ac side may charge the link to",
+            )
+            .min(1.0),
+        );
+        let t_budget = par(
+            v,
+            "dc.t_budget",
+            0.02,
+            "s",
+            "the ac side may draw the link's usable energy (above v_dc_min) at most at the rate usable energy / t_budget beyond the source's power",
+            0.0,
+        );
+        let i_max = par(
+            v,
+            "I_max",
+            1.2,
+            "pu",
+            "current limit, pu of the rated current (S_rated at 1 pu voltage)",
+            0.0,
+        );
+        let priority = v.integer(
+            Spec::parameter(
+                "limit.priority",
+                limits::priority::ACTIVE,
+                "",
+                "grid-following at I_max: 0 active current kept first, 1 reactive current kept first",
+            )
+            .range(0.0, 1.0),
+        );
+        let v_sync = v.real(
+            Spec::parameter(
+                "startup.v_sync",
+                0.5,
+                "pu",
+                "a unit initialized below this terminal voltage waits (zero current) until the voltage is above it and steady, then synchronizes",
+            )
+            .range(0.0, 1.0),
+        );
+        let t_hold = par(
+            v,
+            "startup.t_hold",
+            0.05,
+            "s",
+            "how long the voltage must be above startup.v_sync and steady (|dv/dt| < 0.5 pu/s) before the unit synchronizes",
+            0.0,
+        );
+        let ramp = par(
+            v,
+            "startup.ramp",
+            1.0,
+            "s",
+            "after a start from zero voltage, the set point ramps from 0 to the dispatch over this time",
+            0.0,
+        );
         let storage = v.boolean(Spec::parameter(
             "storage",
             u.storage,
@@ -933,6 +1124,15 @@ impl Model for Der {
             storage,
             deload,
             k_dc,
+            dc_zeta,
+            v_dc_min,
+            v_dc_max,
+            t_budget,
+            i_max,
+            priority,
+            v_sync,
+            t_hold,
+            ramp,
             p_avail0,
             avail_t,
             avail_dp,
@@ -985,6 +1185,67 @@ impl Model for Der {
             )),
             v_dc: v.real(Spec::output("v_dc", "pu", "dc-link voltage")),
             p_dc: out(v, "p_dc", "pu", "power of the dc source, on S_base"),
+            i_ac: out(
+                v,
+                "i_ac",
+                "pu",
+                "magnitude of the ac current at the terminal, pu of the rated current",
+            ),
+            i_limit: v.real(Spec::output(
+                ports::I_LIMIT,
+                "pu",
+                "the current limit I_max, for the grid's slot (the output stage holds it in every network solution)",
+            )),
+            p_min: v.real(Spec::output(
+                ports::P_MIN,
+                "pu",
+                "grid-forming: lowest active power at the terminal the dc link can take now, on S_base (for the grid's slot)",
+            )),
+            p_max: v.real(Spec::output(
+                ports::P_MAX,
+                "pu",
+                "grid-forming: highest active power at the terminal the dc link can give now, on S_base (for the grid's slot)",
+            )),
+            e_src: v.real(Spec::output(
+                "energy.source",
+                "MJ",
+                "energy the primary source delivered since initialization",
+            )),
+            e_ac: v.real(Spec::output(
+                "energy.ac",
+                "MJ",
+                "energy the ac side drew from the dc link since initialization (terminal power and, grid-forming, the R_f loss)",
+            )),
+            e_loss: v.real(Spec::output(
+                "energy.loss",
+                "MJ",
+                "energy lost in the dc link (G_dc) since initialization",
+            )),
+            w_dc: v.real(Spec::output(
+                "energy.stored",
+                "MJ",
+                "energy stored in the dc link, C_dc v_dc^2 / 2 (source - ac - loss = change of this)",
+            )),
+            limit_current: v.boolean(Spec::boolean_output(
+                "limit.current",
+                "the current limit I_max acts (on until 1 s after it last acted; the same for the other limit flags)",
+            )),
+            limit_dc: v.boolean(Spec::boolean_output(
+                "limit.dc",
+                "the dc link's power budget limits the active current (link near v_dc_min or v_dc_max)",
+            )),
+            limit_source: v.boolean(Spec::boolean_output(
+                "limit.source",
+                "the primary source sits at its availability (or its floor)",
+            )),
+            limit_modulation: v.boolean(Spec::boolean_output(
+                "limit.modulation",
+                "grid-forming: the imposed voltage is cut to E_max * v_dc",
+            )),
+            synchronized: v.boolean(Spec::boolean_output(
+                "synchronized",
+                "the unit is synchronized (false while it waits for the terminal voltage after a start from zero voltage)",
+            )),
             rt: None,
         })
     }
@@ -992,12 +1253,8 @@ impl Model for Der {
     fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
         // Initialization may run several times in initialization mode; a warning already given
         // in this episode is not repeated (a reset starts a new episode with `rt` = None).
-        let warned = self
-            .rt
-            .take()
-            .map(|rt| (rt.warned_rating, rt.warned_dc, rt.warned_gains));
-        let (wr, wd, wg) = warned.unwrap_or_default();
-        self.rt = Some(self.build(s, ctx, wr, wd, wg)?);
+        let again = self.rt.take().map(|rt| rt.warned_gains);
+        self.rt = Some(self.build(s, ctx, again)?);
         Ok(())
     }
 
@@ -1024,7 +1281,12 @@ impl Der {
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
+        if rt.startup.is_some() && !self.wait_for_voltage(rt, s, t, h, ctx) {
+            self.step_dc(rt, s, t, h, ctx);
+            return Ok(());
+        }
         let to_dvpp = s[self.s_base] / s[self.s_dvpp];
+        let to_rated = s[self.s_base] / s[self.s_rated];
         let dv = s[self.v] - rt.v0;
         let lpf = self.lpf_gains(s);
         // Dc gains from the operator (the participation bank identity holds while they move).
@@ -1051,11 +1313,23 @@ impl Der {
         } else {
             lpf
         };
-        let s_max = s[self.s_rated] / s[self.s_base];
-        // The set point: the dispatch, curtailed to what the primary source allows (a cloud lowers it).
-        let p_set = rt.p0.min(self.headroom_limit(s, t));
+        // The set point: the dispatch (ramped in after a start from zero voltage), curtailed to
+        // what the primary source allows (a cloud lowers it).
+        let ramp = rt.t_sync.map_or(1.0, |t0| {
+            let r = s[self.ramp];
+            if r > 0.0 {
+                ((t + h - t0) / r).min(1.0)
+            } else {
+                1.0
+            }
+        });
+        let p_set = (rt.p0 * ramp).min(self.headroom_limit(s, t));
         s[self.p_set] = p_set;
-        match &mut rt.channel {
+        let (v, v_angle) = (s[self.v], s[self.v_angle]);
+        let budget = rt.dc.ac_budget();
+        let i_max = s[self.i_max];
+        let mut modulation = false;
+        let (current_limit, dc_limit, request) = match &mut rt.channel {
             Channel::Forming(f) => {
                 match rt.p_kind {
                     kind::STATIC | kind::LOW_PASS => {
@@ -1067,23 +1341,61 @@ impl Der {
                     }
                     _ => {}
                 }
-                let dp = (s[self.p] - p_set) * to_dvpp;
+                // The controls see the power the internal voltage delivers: the measurement
+                // plus what the limits withheld.
+                let (p_fb, q_fb) = (s[self.p] + rt.withheld.0, s[self.q] + rt.withheld.1);
+                let dp = (p_fb - p_set) * to_dvpp;
                 s[self.p_ref] = p_set;
                 let (df, df_int) = f.pf.step_with_integral(dp, h);
                 s[self.df] = df;
-                s[self.theta] += 2.0 * PI * s[self.f_nom] * df_int;
+                f.theta += 2.0 * PI * s[self.f_nom] * df_int;
                 // PI matching controller on E: q tracks the reference held over the step.
                 // E within [0, E_max]; the integrator stops while the limit holds (anti-windup).
-                let e = rt.q_ref - s[self.q];
+                let e = rt.q_ref - q_fb;
                 let e_max = s[self.e_max];
                 let integral = f.e_int + s[self.qpi_ki] * e * h;
                 let unclamped = rt.e0 + s[self.qpi_kp] * e + integral;
-                s[self.e] = unclamped.clamp(0.0, e_max);
-                if unclamped == s[self.e] {
+                f.e = unclamped.clamp(0.0, e_max);
+                if unclamped == f.e {
                     f.e_int = integral;
                 }
                 rt.q_ref = rt.q0 + rt.vq.step(dv, h) / to_dvpp;
                 s[self.q_ref] = rt.q_ref;
+                // The converter imposes the internal voltage, within the modulation limit; its
+                // output stage holds the current within I_max and the active power within the
+                // dc link's budget (enforced in the network solution, `i_limit`, `p_min`,
+                // `p_max`). What the limits hold back, estimated at the measured bus voltage,
+                // is added to the measurements the controls see.
+                let e_cap = s[self.e_max] * rt.dc.v_dc();
+                modulation = f.e > e_cap;
+                let e_out = f.e.min(e_cap);
+                let (r, x) = self.slot_impedance(s);
+                let z = Complex::new(r, x);
+                let bus = Complex::from_polar(v, v_angle);
+                let wanted = (Complex::from_polar(e_out, f.theta) - bus) / z;
+                let u = if v > limits::V_FLOOR {
+                    bus / v
+                } else {
+                    Complex::from_polar(1.0, f.theta)
+                };
+                let lim = limits::saturate_forming(wanted * to_rated, u, v, i_max, budget);
+                // Its gain: the feedback closes a loop through the direct feedthrough `D` of
+                // T_pf/m whose gain over one step, 2π f_nom h |D| (S_base/S_dvpp) E V/|Z|, can
+                // exceed 1 (a low-pass unit, τ/(μ H)); the gain is cut to keep that loop at 0.5.
+                rt.withheld = if lim.current_limit || lim.dc_limit {
+                    let held = bus * (wanted - lim.current / to_rated).conj();
+                    let feedthrough = f.pf.simulator().system().d()[0].abs();
+                    let loop_gain =
+                        2.0 * PI * s[self.f_nom] * h * feedthrough * to_dvpp * e_out * v / z.norm();
+                    let kappa = (0.5 / loop_gain).min(1.0);
+                    (kappa * held.re, kappa * held.im)
+                } else {
+                    (0.0, 0.0)
+                };
+                s[self.e] = e_out;
+                s[self.theta] = f.theta;
+                let request = (wanted * to_rated).norm() / i_max;
+                (lim.current_limit, lim.dc_limit, request)
             }
             Channel::Following(g) => {
                 match rt.p_kind {
@@ -1098,33 +1410,116 @@ impl Der {
                 }
                 let dp = g.fp.step(rt.df_held, h) / to_dvpp;
                 let dq = rt.vq.step(dv, h) / to_dvpp;
-                let mut p_ref = p_set + dp;
-                let mut q_ref = rt.q0 + dq;
-                if p_ref.hypot(q_ref) > s_max {
-                    p_ref = p_ref.clamp(-s_max, s_max);
-                    let q_max = (s_max * s_max - p_ref * p_ref).max(0.0).sqrt();
-                    q_ref = q_ref.clamp(-q_max, q_max);
-                    if !rt.warned_rating {
-                        rt.warned_rating = true;
-                        ctx.warn(format!(
-                            "converter rating reached at t = {t}: references limited to |p + jq| <= {s_max:.4} pu"
-                        ));
-                    }
-                }
-                s[self.p_ref] = p_ref;
-                s[self.q_ref] = q_ref;
-                let y = g.pll.step_all(s[self.v_angle], h);
+                // References as currents at the measured voltage, limited, and back.
+                let vm = v.max(limits::V_FLOOR) / to_rated;
+                let wanted = ((p_set + dp) / vm, (rt.q0 + dq) / vm);
+                let ((ip, iq), cur, dcl) =
+                    limits::saturate_following(wanted, v, i_max, budget, s[self.priority]);
+                s[self.p_ref] = ip * vm;
+                s[self.q_ref] = iq * vm;
+                let y = g.pll.step_all(v_angle, h);
                 rt.df_held = y[0];
                 s[self.df] = y[0];
                 s[self.theta] = y[1];
+                (cur, dcl, wanted.0.hypot(wanted.1) / i_max)
             }
-        }
-        // Primary source and dc side.
-        s[self.p_avail] = self.available(s, t + h);
-        let p_ac = s[self.p] * s[self.s_base] / s[self.s_rated];
-        rt.dc.step(p_ac, h);
-        self.check_limits(s, rt, ctx);
+        };
+        let lim = &mut rt.limit;
+        let t1 = t + h;
+        lim.current
+            .record(t1, current_limit, request, "current limit I_max", ctx);
+        let (lo, hi) = budget;
+        lim.dc.record(
+            t1,
+            dc_limit,
+            rt.dc.v_dc(),
+            &format!("dc-link power budget [{lo:.3}, {hi:.3}] pu (v_dc)"),
+            ctx,
+        );
+        lim.modulation.record(
+            t1,
+            modulation,
+            s[self.e_max] * rt.dc.v_dc(),
+            "modulation limit E_max * v_dc",
+            ctx,
+        );
+        self.step_dc(rt, s, t, h, ctx);
         Ok(())
+    }
+
+    /// The primary source and the dc link over the step, and the outputs that report them.
+    fn step_dc(&self, rt: &mut Runtime, s: &mut Store, t: f64, h: f64, ctx: &mut Context) {
+        s[self.p_avail] = self.available(s, t + h);
+        let to_rated = s[self.s_base] / s[self.s_rated];
+        let (r, _) = self.slot_impedance(s);
+        let p_ac = self.converter_power(s, r);
+        let cap = s[self.p_avail] * to_rated;
+        let dc = rt.dc.step(p_ac, h, cap);
+        rt.limit.source.record(
+            t + h,
+            dc.source,
+            rt.dc.p_src(),
+            &format!("primary source at its limit (P_avail = {cap:.4} pu on S_rated)"),
+            ctx,
+        );
+        self.write_dc(s, rt);
+        self.write_limits(s, rt);
+    }
+
+    /// A unit started below `startup.v_sync`: zero current until the voltage has been above
+    /// it and steady for `startup.t_hold`; then it takes the measured voltage as its operating
+    /// point and synchronizes (returns true from that step on).
+    fn wait_for_voltage(
+        &self,
+        rt: &mut Runtime,
+        s: &mut Store,
+        t: f64,
+        h: f64,
+        ctx: &mut Context,
+    ) -> bool {
+        let (v, v_angle) = (s[self.v], s[self.v_angle]);
+        let st = rt.startup.as_mut().expect("waiting");
+        let steady = h > 0.0 && ((v - st.v_last) / h).abs() < 0.5;
+        st.v_last = v;
+        if v >= s[self.v_sync] && steady {
+            let since = *st.ok_since.get_or_insert(t);
+            if t + h - since >= s[self.t_hold] {
+                rt.startup = None;
+                rt.t_sync = Some(t);
+                rt.v0 = v;
+                rt.theta0 = v_angle;
+                rt.e0 = v;
+                match &mut rt.channel {
+                    Channel::Forming(f) => {
+                        f.e = v;
+                        f.theta = v_angle;
+                    }
+                    Channel::Following(g) => {
+                        g.pll
+                            .set_state(DVector::from_column_slice(&[0.0, v_angle]), v_angle)
+                            .expect("PLL state");
+                    }
+                }
+                s[self.synchronized] = true;
+                ctx.event(format!(
+                    "synchronized at t = {t:.4} s to v = {v:.4} pu; the set point ramps to {:.4} pu over {} s",
+                    rt.p0,
+                    s[self.ramp]
+                ));
+                return true;
+            }
+        } else {
+            st.ok_since = None;
+        }
+        // Zero current: the converter follows the terminal voltage (grid-forming) or injects
+        // nothing (grid-following).
+        s[self.e] = v;
+        s[self.theta] = v_angle;
+        s[self.df] = 0.0;
+        s[self.p_ref] = 0.0;
+        s[self.q_ref] = 0.0;
+        s[self.p_set] = 0.0;
+        false
     }
 }
 

@@ -31,6 +31,13 @@ pub const P_AVAIL: &str = "P_avail";
 /// Output: the active set point (dispatch curtailed by the primary source).
 pub const P_SET: &str = "p_set";
 
+/// Output: the current limit, for the grid's slot.
+pub const I_LIMIT: &str = "i_limit";
+/// Output: lowest active power the dc link can take, for the grid's slot.
+pub const P_MIN: &str = "p_min";
+/// Output: highest active power the dc link can give, for the grid's slot.
+pub const P_MAX: &str = "p_max";
+
 /// Parameter: converter rating, MVA.
 pub const S_RATED: &str = "S_rated";
 /// Parameter: DVPP base, MVA.
@@ -87,7 +94,9 @@ mod tests {
         for p in [P, Q, V, V_ANGLE, MU_P, MU_Q] {
             check(p, Causality::Input);
         }
-        for p in [THETA, E, P_REF, Q_REF, P_AVAIL, P_SET] {
+        for p in [
+            THETA, E, P_REF, Q_REF, P_AVAIL, P_SET, I_LIMIT, P_MIN, P_MAX,
+        ] {
             check(p, Causality::Output);
         }
         for p in [

@@ -57,6 +57,24 @@ pub struct UnitDefaults {
 }
 
 impl UnitDefaults {
+    /// The same unit at `rating` MVA: rating, available power and dispatch scale together
+    /// (participation gains are the operator's to set).
+    pub fn resized(self, rating: Option<f64>) -> Result<Self, String> {
+        let Some(r) = rating else {
+            return Ok(self);
+        };
+        if !(r > 0.0 && r.is_finite()) {
+            return Err(format!("[model] rating = {r}: a rating in MVA is > 0"));
+        }
+        let k = r / self.s_rated;
+        Ok(UnitDefaults {
+            s_rated: r,
+            p: self.p * k,
+            p_avail0: self.p_avail0 * k,
+            ..self
+        })
+    }
+
     /// The generic unit (no preset): a static ADPF `m = μ_p`, so that its frequency channel is
     /// `Δf = -1/(μ_p (H s + D)) Δp`; or the preset's unit.
     pub fn of(preset: Option<Preset>) -> Self {

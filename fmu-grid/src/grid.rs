@@ -13,7 +13,7 @@ pub use crate::network::CONST_POWER_V_MIN;
 use crate::case::{BranchData, Case, CaseError, DerKind, LoadModel};
 use crate::integration::{choose_internal_step, TimeConstant};
 use crate::machine::{rot, state, MachineRt};
-use crate::network::{wrap, Network, Work};
+use crate::network::{Network, Work};
 use crate::powerflow::{self, PowerFlow, C64};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -181,6 +181,35 @@ pub enum DerInput {
     GridFollowing { p_ref: f64, q_ref: f64 },
 }
 
+/// The limits of a slot's converter output stage, enforced inside every network solution (a
+/// converter's inner current loop acts within a fraction of a communication step, so its
+/// saturation is algebraic): the active power it injects within `[p_min, p_max]` (pu on S_base;
+/// the dc link's budget, grid-forming slots), then the current magnitude at most `i_max` (pu of
+/// the slot rating at 1 pu voltage), keeping the current's direction.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SlotLimit {
+    pub i_max: f64,
+    pub p_min: f64,
+    pub p_max: f64,
+}
+
+impl SlotLimit {
+    /// No limit.
+    pub const NONE: SlotLimit = SlotLimit {
+        i_max: f64::INFINITY,
+        p_min: f64::NEG_INFINITY,
+        p_max: f64::INFINITY,
+    };
+
+    fn is_none(&self) -> bool {
+        *self == SlotLimit::NONE
+    }
+}
+
+/// Below this bus voltage (pu) the active-power limits of a slot are not applied (a dead bus
+/// has no direction; the current limit still holds).
+const LIMIT_V_MIN: f64 = 1e-3;
+
 /// Per-slot outputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct DerOutput {
@@ -262,6 +291,43 @@ pub(crate) struct DerRt {
     pub y: C64,
     pub input: DerInput,
     pub initial: DerSetpoint,
+    /// Slot rating over S_base (converts `i_max` to the system base).
+    pub rating: f64,
+    pub limit: SlotLimit,
+}
+
+impl DerRt {
+    /// The current the slot injects into its bus at voltage `v`: `y (E - V)` (grid-forming) or
+    /// `conj(S/V)` (grid-following), within the slot's limits.
+    pub(crate) fn current(&self, v: C64) -> C64 {
+        let free = match self.input {
+            DerInput::GridForming { theta, e } => self.y * (C64::from_polar(e, theta) - v),
+            DerInput::GridFollowing { p_ref, q_ref } => {
+                if v.norm() > 0.0 {
+                    (C64::new(p_ref, q_ref) / v).conj()
+                } else {
+                    C64::new(0.0, 0.0)
+                }
+            }
+        };
+        if self.limit.is_none() {
+            return free;
+        }
+        let mut i = free;
+        let vm = v.norm();
+        if vm > LIMIT_V_MIN {
+            // Active part along the voltage: p = |V| i_p.
+            let u = v / vm;
+            let local = i * u.conj();
+            let ip = local.re.clamp(self.limit.p_min / vm, self.limit.p_max / vm);
+            i = C64::new(ip, local.im) * u;
+        }
+        let i_max = self.limit.i_max * self.rating;
+        if i.norm() > i_max {
+            i *= i_max / i.norm();
+        }
+        i
+    }
 }
 
 /// The reduced-grid model.
@@ -372,6 +438,8 @@ impl Grid {
                 ),
             };
             ders.push(DerRt {
+                rating: d.rating_mva / sb,
+                limit: SlotLimit::NONE,
                 kind: d.kind,
                 bus,
                 y,
@@ -587,16 +655,42 @@ impl Grid {
         Ok(())
     }
 
+    /// Set the converter limits of slot `k` (0-based) for the next solutions: `i_max` in pu of
+    /// the slot rating, `p_min`, `p_max` in pu on S_base (infinite: none).
+    pub fn set_der_limit(&mut self, k: usize, limit: SlotLimit) -> Result<(), GridError> {
+        let d = self.ders.get_mut(k).ok_or(GridError::BadSlot {
+            index: k,
+            reason: "no such slot".into(),
+        })?;
+        let SlotLimit {
+            i_max,
+            p_min,
+            p_max,
+        } = limit;
+        if i_max.is_nan() || i_max < 0.0 || p_min.is_nan() || p_max.is_nan() || p_min > p_max {
+            return Err(GridError::BadSlot {
+                index: k,
+                reason: format!(
+                    "limits i_max = {i_max}, p_min = {p_min}, p_max = {p_max}: need i_max >= 0 (0: the converter is blocked) and p_min <= p_max"
+                ),
+            });
+        }
+        d.limit = limit;
+        Ok(())
+    }
+
+    /// Converter limits of slot `k` (0-based).
+    pub fn der_limit(&self, k: usize) -> Option<SlotLimit> {
+        self.ders.get(k).map(|d| d.limit)
+    }
+
     // ---------------------------------------------------------------- outputs
 
     fn der_power(&self, d: &DerRt) -> C64 {
         let vb = self.v[d.bus];
-        match d.input {
-            DerInput::GridForming { theta, e } => {
-                let i = d.y * (C64::from_polar(e, theta) - vb);
-                vb * i.conj()
-            }
-            DerInput::GridFollowing { p_ref, q_ref } => C64::new(p_ref, q_ref),
+        match (d.input, d.limit.is_none()) {
+            (DerInput::GridFollowing { p_ref, q_ref }, true) => C64::new(p_ref, q_ref),
+            _ => vb * d.current(vb).conj(),
         }
     }
 
@@ -678,8 +772,7 @@ impl Grid {
                 sp += if at == br.from { sf } else { st };
             }
         }
-        let th = self.v[self.pcc_bus].arg();
-        let f = 1.0 + wrap(th - self.x[nx - 1]) / (self.pcc_tf * self.wb);
+        let f = 1.0 + (self.pcc_angle - self.x[nx - 1]) / (self.pcc_tf * self.wb);
         out.pcc = PccOutput {
             p: sp.re,
             q: sp.im,

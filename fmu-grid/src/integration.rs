@@ -116,17 +116,17 @@ impl Grid {
         for (m, a) in self.machines.iter().zip(alg) {
             m.deriv(x, a, v[m.bus].norm(), self.wb, self.sb, dx);
         }
+        // The PCC frequency filter works on the unwrapped angle: its lag behind the angle is
+        // Δω T_f, beyond π at deviations above π/(ω_b T_f) (0.1 pu for T_f = 0.1 s).
         let nx = x.len();
-        let th = v[self.pcc_bus].arg();
-        dx[nx - 1] = wrap(th - x[nx - 1]) / self.pcc_tf;
+        let th = self.pcc_angle + wrap(v[self.pcc_bus].arg() - self.pcc_angle);
+        dx[nx - 1] = (th - x[nx - 1]) / self.pcc_tf;
     }
 
     fn clamp_states(&mut self) {
         for m in &self.machines {
             m.clamp(&mut self.x);
         }
-        let nx = self.x.len();
-        self.x[nx - 1] = wrap(self.x[nx - 1]);
     }
 
     /// One RK4 step of length `h` from the current state, whose network solution is the one

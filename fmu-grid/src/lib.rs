@@ -36,7 +36,7 @@ pub use case::{Case, CaseError, DerKind, Event, LoadModel};
 pub use events::{EventOverride, EventState};
 pub use grid::{
     DerInput, DerOutput, DerSetpoint, Grid, GridError, MachineOutput, Outputs, PccOutput,
-    LOSS_OF_SYNCHRONISM_ANGLE,
+    SlotLimit, LOSS_OF_SYNCHRONISM_ANGLE,
 };
 pub use integration::{MAX_INTERNAL_STEP, MIN_INTERNAL_STEP, STEPS_PER_TIME_CONSTANT};
 pub use network::CONST_POWER_V_MIN;
@@ -123,12 +123,19 @@ impl GridConfig {
     }
 }
 
-/// Handles of one DER slot: its two inputs (θ, E or p_ref, q_ref) and four outputs.
+/// Start value of the slot limit inputs, and the magnitude from which a limit input means none.
+pub const NO_LIMIT: f64 = 1e6;
+
+/// Handles of one DER slot: its two inputs (θ, E or p_ref, q_ref), its converter's limits and
+/// four outputs.
 #[derive(Clone, Serialize, Deserialize)]
 struct SlotVars {
     grid_forming: bool,
     a: Real,
     b: Real,
+    i_max: Real,
+    /// Grid-forming slots: the active-power range (the converter's dc budget).
+    p_range: Option<(Real, Real)>,
     p: Real,
     q: Real,
     v: Real,
@@ -172,14 +179,6 @@ pub struct GridFmu {
 }
 
 /// A Boolean output (discrete; Real outputs come from [`Spec::output`]).
-fn boolean_output(name: &str, description: &str) -> Spec {
-    Spec {
-        start: fmi_export::Value::Boolean(false),
-        variability: fmi_export::model_description::Variability::Discrete,
-        ..Spec::output(name, "", description)
-    }
-}
-
 fn event_label(e: &Event) -> String {
     match e {
         Event::LoadStep { bus, .. } => format!("load step at bus {bus}"),
@@ -342,10 +341,40 @@ impl Model for GridFmu {
                     )),
                 ),
             };
+            let i_max = v.real(
+                Spec::input(
+                    &ports::der_i_max(k + 1),
+                    NO_LIMIT,
+                    "pu",
+                    "current limit of the slot's converter, pu of the slot rating at 1 pu voltage, enforced in every network solution (1e6 and above: none)",
+                )
+                .min(0.0),
+            );
+            let p_range = grid_forming.then(|| {
+                let p = |v: &mut Variables, name: String, start: f64, desc: &str| {
+                    v.real(Spec::input(&name, start, "pu", desc))
+                };
+                (
+                    p(
+                        v,
+                        ports::der_p_min(k + 1),
+                        -NO_LIMIT,
+                        "lowest active power the slot's converter takes in, on S_base (its dc link's budget; -1e6 and below: none)",
+                    ),
+                    p(
+                        v,
+                        ports::der_p_max(k + 1),
+                        NO_LIMIT,
+                        "highest active power the slot's converter gives, on S_base (its dc link's budget; 1e6 and above: none)",
+                    ),
+                )
+            });
             slots.push(SlotVars {
                 grid_forming,
                 a,
                 b,
+                i_max,
+                p_range,
                 p: v.real(Spec::output(
                     &ports::der_p(k + 1),
                     "pu",
@@ -417,7 +446,7 @@ impl Model for GridFmu {
                     .clone()
                     .unwrap_or_else(|| format!("machine at bus {}", m.bus));
                 MachineVars {
-                    in_service: v.boolean(boolean_output(
+                    in_service: v.boolean(Spec::boolean_output(
                         &name("in_service"),
                         &format!(
                             "{label}: connected to the grid (false after a generator trip; \
@@ -533,6 +562,18 @@ impl Model for GridFmu {
             self.grid
                 .set_der_input_deferred(k, input)
                 .map_err(|e| ModelError(e.to_string()))?;
+            let none = |x: f64, inf: f64| if x.abs() >= NO_LIMIT { inf } else { x };
+            let (p_min, p_max) = vars
+                .p_range
+                .map_or((-NO_LIMIT, NO_LIMIT), |(lo, hi)| (s[lo], s[hi]));
+            let limit = SlotLimit {
+                i_max: none(s[vars.i_max], f64::INFINITY),
+                p_min: none(p_min, f64::NEG_INFINITY),
+                p_max: none(p_max, f64::INFINITY),
+            };
+            self.grid
+                .set_der_limit(k, limit)
+                .map_err(|e| ModelError(format!("slot {}: {e}", k + 1)))?;
         }
         self.grid
             .step(t, h)

@@ -10,7 +10,7 @@
 //! fixed-point iteration on the factorized network (tolerance 1e-12 pu on every bus voltage).
 
 use crate::case::{BranchData, DerKind};
-use crate::grid::{DerInput, Grid, GridError};
+use crate::grid::{DerInput, Grid, GridError, SlotLimit};
 use crate::machine::{rot, state, MachAlg};
 use crate::powerflow::{self, C64};
 use nalgebra::DVector;
@@ -208,7 +208,10 @@ impl Grid {
     ) -> Result<(), GridError> {
         let net = self.net.as_ref().ok_or(GridError::SingularNetwork)?;
         let n = self.n;
-        let iterate = self.ders.iter().any(|d| d.kind == DerKind::GridFollowing)
+        let iterate = self
+            .ders
+            .iter()
+            .any(|d| d.kind == DerKind::GridFollowing || d.limit != SlotLimit::NONE)
             || self.load_s.iter().any(|s| s.norm_sqr() > 0.0);
         w.sal.clear();
         for (j, m) in self.machines.iter().enumerate() {
@@ -257,10 +260,21 @@ impl Grid {
             for d in &self.ders {
                 match d.input {
                     DerInput::GridForming { theta, e } => {
-                        cur[d.bus] += d.y * C64::from_polar(e, theta)
+                        // The Norton source (its admittance is in the matrix) and, when a limit
+                        // acts, the current it holds back at the present iterate.
+                        let norton = d.y * C64::from_polar(e, theta);
+                        cur[d.bus] += norton;
+                        if d.limit != SlotLimit::NONE {
+                            let vb = v[d.bus];
+                            cur[d.bus] += d.current(vb) - (norton - d.y * vb);
+                        }
                     }
                     DerInput::GridFollowing { p_ref, q_ref } => {
-                        cur[d.bus] += (C64::new(p_ref, q_ref) / v[d.bus]).conj()
+                        cur[d.bus] += if d.limit == SlotLimit::NONE {
+                            (C64::new(p_ref, q_ref) / v[d.bus]).conj()
+                        } else {
+                            d.current(v[d.bus])
+                        }
                     }
                 }
             }

@@ -25,6 +25,21 @@ pub fn der_q_ref(k: usize) -> String {
     der(k, "q_ref")
 }
 
+/// Slot `k` (1-based), input: current limit of its converter.
+pub fn der_i_max(k: usize) -> String {
+    der(k, "i_max")
+}
+
+/// Grid-forming slot `k` (1-based), input: lowest active power of its converter.
+pub fn der_p_min(k: usize) -> String {
+    der(k, "p_min")
+}
+
+/// Grid-forming slot `k` (1-based), input: highest active power of its converter.
+pub fn der_p_max(k: usize) -> String {
+    der(k, "p_max")
+}
+
 /// Slot `k` (1-based), output: active power it injects.
 pub fn der_p(k: usize) -> String {
     der(k, "p")

@@ -2,7 +2,7 @@
 
 use crate::case::{Case, Event};
 use crate::events::EventState;
-use crate::grid::{DerInput, Grid};
+use crate::grid::{DerInput, Grid, SlotLimit};
 use crate::powerflow::C64;
 use serde::{Deserialize, Serialize};
 
@@ -22,6 +22,7 @@ struct GridSnapshot {
     load_y: Vec<C64>,
     load_s: Vec<C64>,
     der_inputs: Vec<DerInput>,
+    der_limits: Vec<SlotLimit>,
     x: Vec<f64>,
     t: f64,
     v: Vec<C64>,
@@ -51,6 +52,7 @@ impl GridSnapshot {
             load_y: g.load_y.clone(),
             load_s: g.load_s.clone(),
             der_inputs: g.ders.iter().map(|d| d.input).collect(),
+            der_limits: g.ders.iter().map(|d| d.limit).collect(),
             x: g.x.clone(),
             t: g.t,
             v: g.v.clone(),
@@ -72,6 +74,7 @@ impl GridSnapshot {
             (g.n, self.load_s.len(), "load powers"),
             (g.n, self.v.len(), "bus voltages"),
             (g.ders.len(), self.der_inputs.len(), "DER inputs"),
+            (g.ders.len(), self.der_limits.len(), "DER limits"),
             (g.ders.len(), self.der_angle.len(), "DER angles"),
             (g.x.len(), self.x.len(), "states"),
         ];
@@ -99,6 +102,9 @@ impl GridSnapshot {
         for (k, input) in self.der_inputs.into_iter().enumerate() {
             g.set_der_input_deferred(k, input)
                 .map_err(|e| e.to_string())?;
+        }
+        for (k, limit) in self.der_limits.into_iter().enumerate() {
+            g.set_der_limit(k, limit).map_err(|e| e.to_string())?;
         }
         g.load_y = self.load_y;
         g.load_s = self.load_s;

@@ -145,25 +145,37 @@ enum Degenerate {
 }
 
 /// Warn once per episode: `active` says whether the condition holds now, `clear` whether it has
-/// ended (for a threshold, below it by a margin, so that a value hovering at the threshold is
-/// one episode, not one per crossing); `warned` remembers the conditions already reported. The
-/// end of an episode is logged as an event.
+/// ended (for a threshold, below it by a margin); an episode ends when it has been clear for
+/// [`RELEASE`] seconds, so that a value hovering at a threshold is one episode, not one per
+/// crossing. `warned` holds the conditions reported, each with the time it has been clear since.
+/// The end of an episode is logged as an event.
 fn warn_once(
-    warned: &mut Vec<Degenerate>,
+    warned: &mut Vec<(Degenerate, Option<f64>)>,
     ctx: &mut Context,
+    t: f64,
     what: Degenerate,
     (active, clear): (bool, bool),
     message: impl FnOnce() -> String,
 ) {
-    let seen = warned.contains(&what);
-    if active && !seen {
-        warned.push(what);
-        ctx.warn(message());
-    } else if clear && seen {
-        warned.retain(|w| *w != what);
-        ctx.event(what.ended());
+    match warned.iter().position(|(w, _)| *w == what) {
+        None if active => {
+            warned.push((what, None));
+            ctx.warn(message());
+        }
+        None => {}
+        Some(i) if clear => {
+            let since = *warned[i].1.get_or_insert(t);
+            if t - since >= RELEASE {
+                warned.remove(i);
+                ctx.event(what.ended());
+            }
+        }
+        Some(i) => warned[i].1 = None,
     }
 }
+
+/// How long a condition must stay clear for its episode to end, s.
+const RELEASE: f64 = 1.0;
 
 /// How far below a rating a unit must come back for its over-rating episode to end.
 const RATING_HYSTERESIS: f64 = 0.02;
@@ -177,7 +189,7 @@ impl Degenerate {
                 format!("DER {}'s available power is no longer negative", k + 1)
             }
             Degenerate::OverRating(k) => format!(
-                "DER {} is back within its rating (below {:.0} % of it)",
+                "DER {} is back within its rating (below {:.0} % of it for {RELEASE} s)",
                 k + 1,
                 (1.0 - RATING_HYSTERESIS) * 100.0
             ),
@@ -218,7 +230,7 @@ pub struct Operator {
     /// Gains currently sent, and gains waiting out the communication delay (time, gains).
     sent: Option<Gains>,
     queue: VecDeque<(f64, Gains)>,
-    warned: Vec<Degenerate>,
+    warned: Vec<(Degenerate, Option<f64>)>,
 }
 
 impl Operator {
@@ -237,7 +249,7 @@ impl Operator {
     }
 
     /// The gains the current inputs call for.
-    fn target(&mut self, s: &Store, ctx: &mut Context) -> Result<Gains, ModelError> {
+    fn target(&mut self, s: &Store, t: f64, ctx: &mut Context) -> Result<Gains, ModelError> {
         let s_base = s[self.s_base];
         let lpf: Vec<usize> = self.low_pass().collect();
         let mut weights = Vec::with_capacity(lpf.len());
@@ -247,6 +259,7 @@ impl Operator {
             warn_once(
                 &mut self.warned,
                 ctx,
+                t,
                 Degenerate::NegativeAvailability(k),
                 (avail < 0.0, avail >= 0.0),
                 || {
@@ -262,6 +275,7 @@ impl Operator {
         warn_once(
             &mut self.warned,
             ctx,
+            t,
             Degenerate::NoAvailability,
             (none, !none),
             || {
@@ -283,6 +297,7 @@ impl Operator {
             warn_once(
                 &mut self.warned,
                 ctx,
+                t,
                 Degenerate::OverRating(k),
                 (
                     p_mw.abs() > rating,
@@ -298,6 +313,7 @@ impl Operator {
         warn_once(
             &mut self.warned,
             ctx,
+            t,
             Degenerate::NoReactiveCapacity,
             (none, !none),
             || {
@@ -603,7 +619,7 @@ impl Model for Operator {
         self.p_set0 = self.set_point(s);
         self.warned.clear();
         self.queue.clear();
-        let gains = self.target(s, ctx)?;
+        let gains = self.target(s, 0.0, ctx)?;
         self.write_gains(s, &gains);
         self.sent = Some(gains);
         for r in [self.ref_df, self.ref_dv, self.err_df, self.err_dv] {
@@ -621,7 +637,7 @@ impl Model for Operator {
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
         // Gains: target now, delayed by the communication delay, then rate limited.
-        let target = self.target(s, ctx)?;
+        let target = self.target(s, t + h, ctx)?;
         let delay = s[self.delay];
         self.queue.push_back((t + h, target));
         let mut due = None;

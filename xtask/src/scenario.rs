@@ -154,11 +154,13 @@ fn role_of(md: &ModelDescription, der: &str) -> Result<Role, String> {
     })
 }
 
-/// The `[model]` of a DER's FMU: its preset.
-fn der_model(spec: &DerSpec) -> Table {
+/// The `[model]` of a DER's FMU: its preset, resized to the slot's rating (its available power
+/// and dispatch scale with it).
+fn der_model(spec: &DerSpec, rating_mva: f64) -> Table {
     let mut model = Table::new();
     if let Some(p) = &spec.preset {
         model.insert("preset".into(), Value::String(p.clone()));
+        model.insert("rating".into(), real(rating_mva));
     }
     model
 }
@@ -327,9 +329,9 @@ impl Job<'_, '_> {
         let mut ders = Vec::with_capacity(self.sc.der.len());
         for k in 0..self.sc.der.len() {
             let spec = &self.sc.der[k];
-            let model = der_model(spec);
-            let mut start = tdes.clone();
             let slot = &grid.case.ders[k];
+            let model = der_model(spec, slot.rating_mva);
+            let mut start = tdes.clone();
             let forming = slot.kind == fmu_grid::DerKind::GridForming;
             let mode = if forming {
                 fmu_der::GRID_FORMING
@@ -388,7 +390,7 @@ impl Job<'_, '_> {
             for (key, v) in extra {
                 d.unit.start.entry(key).or_insert(v);
             }
-            let model = der_model(&self.sc.der[k]);
+            let model = der_model(&self.sc.der[k], grid.case.ders[k].rating_mva);
             d.unit.md = self.build(DER_FMU, &d.unit.name, model, &d.unit.start, Vec::new())?;
         }
         Ok(ders)
@@ -472,18 +474,24 @@ fn slot_measurements(d: &DerUnit, _: usize) -> Vec<Wire> {
     ]
 }
 
-/// DER → grid: what drives its slot (`E∠θ` grid-forming, `p_ref`, `q_ref` grid-following).
+/// DER → grid: what drives its slot (`E∠θ` grid-forming, `p_ref`, `q_ref` grid-following) and
+/// its converter's limits.
 fn slot_drive(d: &DerUnit, _: usize) -> Vec<Wire> {
     let (n, k) = (d.unit.name.as_str(), d.slot);
+    // The converter's limits go with its drive: the slot's output stage holds them.
     if d.forming {
         vec![
             wire(n, der::THETA, GRID, &grid::der_theta(k)),
             wire(n, der::E, GRID, &grid::der_e(k)),
+            wire(n, der::I_LIMIT, GRID, &grid::der_i_max(k)),
+            wire(n, der::P_MIN, GRID, &grid::der_p_min(k)),
+            wire(n, der::P_MAX, GRID, &grid::der_p_max(k)),
         ]
     } else {
         vec![
             wire(n, der::P_REF, GRID, &grid::der_p_ref(k)),
             wire(n, der::Q_REF, GRID, &grid::der_q_ref(k)),
+            wire(n, der::I_LIMIT, GRID, &grid::der_i_max(k)),
         ]
     }
 }
@@ -756,9 +764,10 @@ mod tests {
     #[test]
     fn shipped_scenarios_wire_outputs_to_inputs() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
-        // Per DER: 4 measurements, 2 drives, 4 to the operator, mu_q; mu_p of the 2 low-pass
-        // units, their 2 gains to the complement; 4 PCC measurements.
-        assert_wired(&dir.join("case1_load.toml"), 3 * 11 + 2 + 2 + 4);
+        // Per DER: 4 measurements, 2 drives, 4 to the operator, mu_q, and the converter limits
+        // (grid-forming: i_limit, p_min, p_max); mu_p of the 2 low-pass units, their 2 gains to
+        // the complement; 4 PCC measurements.
+        assert_wired(&dir.join("case1_load.toml"), 3 * (11 + 3) + 2 + 2 + 4);
         assert_wired(&dir.join("ieee9.toml"), 0);
     }
 
@@ -783,8 +792,9 @@ mod tests {
             text += &format!("[[der]]\nname = \"{name}\"\npreset = \"{preset}\"\n");
         }
         std::fs::write(&path, text).unwrap();
-        // 6 DERs of 11 connections; 4 low-pass mu_p; 2 complements of 4 gains; 4 PCC.
-        assert_wired(&path, 6 * 11 + 4 + 2 * 4 + 4);
+        // 6 DERs of 11 connections, 3 grid-forming with 3 limits and 3 grid-following with 1;
+        // 4 low-pass mu_p; 2 complements of 4 gains; 4 PCC.
+        assert_wired(&path, 6 * 11 + 3 * 3 + 3 + 4 + 2 * 4 + 4);
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -1,0 +1,179 @@
+//! Converter limits on the ac side: current-reference saturation (grid-forming and
+//! grid-following), the dc link's power budget, the modulation limit, and their episodes.
+//!
+//! Currents are pu on `S_rated` at 1 pu voltage, split along the measured terminal voltage into an
+//! active part `i_p` (`p = |V| i_p`) and a reactive part `i_q` (`q = |V| i_q`).
+
+use dvpp_control::Complex;
+use fmi_export::Context;
+use serde::{Deserialize, Serialize};
+
+/// Below this terminal voltage (pu) the current split uses this value (a dead bus has no
+/// direction; the magnitude limit still holds).
+pub const V_FLOOR: f64 = 0.05;
+
+/// A limit episode ends after this long without the limit acting (s).
+pub const RELEASE: f64 = 1.0;
+
+/// Which component keeps its current when a grid-following unit reaches `I_max`.
+pub mod priority {
+    /// Active current first (frequency support).
+    pub const ACTIVE: i32 = 0;
+    /// Reactive current first (voltage support, as fault ride-through codes ask).
+    pub const REACTIVE: i32 = 1;
+}
+
+/// What a limiter did to one current reference.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Limited {
+    /// The current after the limits, same frame as the request.
+    pub current: Complex<f64>,
+    /// The magnitude reached `I_max`.
+    pub current_limit: bool,
+    /// The active part reached the dc link's budget.
+    pub dc_limit: bool,
+}
+
+/// Grid-forming current-reference saturation: the requested current `i` (rated pu, in the frame
+/// of the terminal voltage direction `u`) is cut to the dc budget `[p_lo, p_hi]/|V|` on its active
+/// part, then scaled onto the circle `I_max` keeping its direction.
+pub fn saturate_forming(
+    i: Complex<f64>,
+    u: Complex<f64>,
+    v: f64,
+    i_max: f64,
+    (p_lo, p_hi): (f64, f64),
+) -> Limited {
+    let v = v.max(V_FLOOR);
+    // Components along and across the voltage: i = (i_p - j i_q) u.
+    let local = i * u.conj();
+    let (mut ip, mut iq) = (local.re, -local.im);
+    let (lo, hi) = (p_lo / v, p_hi / v);
+    let mut dc_limit = false;
+    if ip > hi || ip < lo {
+        ip = ip.clamp(lo.min(hi), hi);
+        dc_limit = true;
+    }
+    let mag = ip.hypot(iq);
+    let current_limit = mag > i_max;
+    if !(current_limit || dc_limit) {
+        return Limited {
+            current: i,
+            ..Limited::default()
+        };
+    }
+    if current_limit {
+        ip *= i_max / mag;
+        iq *= i_max / mag;
+    }
+    Limited {
+        current: Complex::new(ip, -iq) * u,
+        current_limit,
+        dc_limit,
+    }
+}
+
+/// Grid-following current limit: active part within the dc budget, then `|i| <= I_max` with the
+/// component `priority` names kept first. Takes and returns `(i_p, i_q)`.
+pub fn saturate_following(
+    (ip, iq): (f64, f64),
+    v: f64,
+    i_max: f64,
+    (p_lo, p_hi): (f64, f64),
+    first: i32,
+) -> ((f64, f64), bool, bool) {
+    let v = v.max(V_FLOOR);
+    let (lo, hi) = (p_lo / v, p_hi / v);
+    let ip_dc = ip.clamp(lo.min(hi), hi);
+    let dc_limit = ip_dc != ip;
+    let current_limit = ip_dc.hypot(iq) > i_max;
+    if !current_limit {
+        return ((ip_dc, iq), false, dc_limit);
+    }
+    let keep = |x: f64| x.clamp(-i_max, i_max);
+    let rest = |x: f64, kept: f64| {
+        let room = (i_max * i_max - kept * kept).max(0.0).sqrt();
+        x.clamp(-room, room)
+    };
+    let out = if first == priority::REACTIVE {
+        let q = keep(iq);
+        (rest(ip_dc, q), q)
+    } else {
+        let p = keep(ip_dc);
+        (p, rest(iq, p))
+    };
+    (out, true, dc_limit)
+}
+
+/// One limit's episode: a warning when it starts acting, an event when it has not acted for
+/// [`RELEASE`] seconds, nothing in between.
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
+pub struct Episode {
+    active: bool,
+    /// Time the limit last acted.
+    last: f64,
+    /// Worst value seen in this episode (for the closing line).
+    worst: f64,
+}
+
+impl Episode {
+    /// Whether the episode is on (the output flag).
+    pub fn active(&self) -> bool {
+        self.active
+    }
+
+    /// Record the limit at time `t`: `acting` with the measure `value` (e.g. the requested
+    /// current in pu of `I_max`); `what` names the limit in the log lines.
+    pub fn record(&mut self, t: f64, acting: bool, value: f64, what: &str, ctx: &mut Context) {
+        if acting {
+            if !self.active {
+                self.active = true;
+                self.worst = value;
+                ctx.warn(format!("{what} acts from t = {t:.4} s ({value:.3})"));
+            }
+            self.worst = self.worst.max(value);
+            self.last = t;
+        } else if self.active && t - self.last >= RELEASE {
+            self.active = false;
+            ctx.event(format!(
+                "{what} released at t = {t:.4} s (acted until t = {:.4} s; worst {:.3})",
+                self.last, self.worst
+            ));
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn forming_saturation_keeps_the_direction_and_the_budget() {
+        let u = Complex::from_polar(1.0, 0.3);
+        let i = Complex::new(1.5, -0.9) * u;
+        let l = saturate_forming(i, u, 1.0, 1.2, (-5.0, 5.0));
+        assert!(l.current_limit && !l.dc_limit);
+        assert!((l.current.norm() - 1.2).abs() < 1e-12);
+        assert!((l.current.arg() - i.arg()).abs() < 1e-12);
+        // Below the limit nothing changes.
+        let small = Complex::new(0.5, 0.2) * u;
+        let l = saturate_forming(small, u, 1.0, 1.2, (-5.0, 5.0));
+        assert_eq!(l.current, small);
+        assert!(!l.current_limit && !l.dc_limit);
+        // An empty link: no active current beyond what the source gives.
+        let l = saturate_forming(Complex::new(0.8, 0.0) * u, u, 0.9, 1.2, (-1.0, 0.09));
+        assert!(l.dc_limit);
+        assert!(((l.current * u.conj()).re * 0.9 - 0.09).abs() < 1e-12);
+    }
+
+    #[test]
+    fn following_priority_decides_which_current_stays() {
+        let (p, lim, _) = saturate_following((1.0, 1.0), 1.0, 1.2, (-9.0, 9.0), priority::ACTIVE);
+        assert!(lim);
+        assert_eq!(p.0, 1.0);
+        assert!((p.0.hypot(p.1) - 1.2).abs() < 1e-12);
+        let (q, _, _) = saturate_following((1.0, 1.0), 1.0, 1.2, (-9.0, 9.0), priority::REACTIVE);
+        assert_eq!(q.1, 1.0);
+        assert!((q.0.hypot(q.1) - 1.2).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,125 @@
+//! Converter limits end to end in our master: severe events (a 250 MW load step, a trip of SG1,
+//! a trip of SG1 and SG3) keep every unit within its current limit and its dc link within its
+//! range, each unit's energy account closes, and a run with no operating point left stops with
+//! a one-line cause and its trajectory kept.
+
+use dvpp_cosim::master::{self, Options, Recorder};
+use dvpp_cosim::Table;
+use dvpp_e2e::scenario;
+
+const UNITS: [&str; 3] = ["wind", "pv", "bess"];
+
+fn column(t: &Table, name: &str) -> Vec<f64> {
+    t.column(name).unwrap_or_else(|| panic!("no column {name}"))
+}
+
+/// The run's rows (all of them, or those up to a failure) and its outcome.
+fn run(name: &str) -> (Table, Result<master::Outcome, master::Error>) {
+    let mut recorder = Recorder::default();
+    let outcome = master::run(&scenario(name), &Options::default(), &mut [&mut recorder]);
+    (recorder.table, outcome)
+}
+
+/// Per unit: the largest current over its limit, the dc-link range, and the energy residual
+/// `source - ac - loss - Δstored` relative to the energy moved.
+fn check_units(name: &str, t: &Table) {
+    for u in UNITS {
+        let c = |v: &str| column(t, &format!("{u}.{v}"));
+        let (i, limit) = (c("i_ac"), c("i_limit"));
+        let ratio = i.iter().zip(&limit).map(|(i, l)| i / l).fold(0.0, f64::max);
+        let v_dc = c("v_dc");
+        let (lo, hi) = v_dc
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        let last = |v: &str| *c(v).last().expect("rows");
+        let w0 = c("energy.stored")[0];
+        let (src, ac, loss, w) = (
+            last("energy.source"),
+            last("energy.ac"),
+            last("energy.loss"),
+            last("energy.stored"),
+        );
+        let residual = (src - ac - loss - (w - w0)) / (src.abs() + ac.abs());
+        println!(
+            "{name} {u}: largest current {:.4} of I_max, v_dc in [{lo:.4}, {hi:.4}], energy residual {residual:.1e} of {:.1} MJ moved",
+            ratio,
+            src.abs() + ac.abs()
+        );
+        assert!(ratio <= 1.05, "{name} {u}: current {ratio:.3} x I_max");
+        // No power from an empty link (nor into a full one): v_dc within [v_dc_min, v_dc_max]
+        // of the defaults (0.8, 1.2) up to one step's overshoot.
+        assert!(
+            lo >= 0.8 - 0.01 && hi <= 1.2 + 0.01,
+            "{name} {u}: v_dc in [{lo}, {hi}]"
+        );
+        assert!(
+            residual.abs() <= 1e-6,
+            "{name} {u}: energy residual {residual:e}"
+        );
+    }
+}
+
+#[test]
+fn severe_events_stay_within_the_converter_limits() {
+    for name in ["case1_load", "limits_load250", "limits_sg1_trip"] {
+        let (t, outcome) = run(name);
+        let outcome = outcome.unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(
+            matches!(outcome.end, master::End::Completed),
+            "{name}: {:?}",
+            outcome.end
+        );
+        println!("{name}: {} warning lines", outcome.warnings.len());
+        assert!(
+            outcome.warnings.len() <= 30,
+            "{name}: {} warnings (a flood): {:#?}",
+            outcome.warnings.len(),
+            outcome.warnings
+        );
+        check_units(name, &t);
+        // The DVPP stays in synchronism with the machines: at the end the PCC frequency is the
+        // centre-of-inertia frequency (the measurement also holds beyond 0.1 pu off nominal).
+        let (f_pcc, f_coi) = (column(&t, "grid.pcc.f"), column(&t, "grid.coi.f"));
+        let gap = (f_pcc.last().unwrap() - f_coi.last().unwrap()).abs();
+        println!(
+            "{name}: f_pcc {:.4} pu, f_coi {:.4} pu at the end",
+            f_pcc.last().unwrap(),
+            f_coi.last().unwrap()
+        );
+        assert!(
+            gap < 1e-3,
+            "{name}: PCC and COI frequencies differ by {gap}"
+        );
+        if name != "case1_load" {
+            let acted = UNITS.iter().any(|u| {
+                column(&t, &format!("{u}.limit.current"))
+                    .iter()
+                    .any(|&x| x != 0.0)
+            });
+            assert!(acted, "{name}: no unit reached its current limit");
+        }
+    }
+}
+
+#[test]
+fn a_grid_with_no_operating_point_left_stops_with_its_cause_and_keeps_the_trajectory() {
+    let (t, outcome) = run("limits_sg13_trip");
+    let outcome = outcome.unwrap_or_else(|e| panic!("{e}"));
+    let master::End::Failed { error: err, .. } = &outcome.end else {
+        panic!("the DVPP alone cannot carry the load: {:?}", outcome.end);
+    };
+    println!(
+        "limits_sg13_trip: {err} ({} warning lines)",
+        outcome.warnings.len()
+    );
+    assert!(outcome.warnings.len() <= 30, "{:#?}", outcome.warnings);
+    assert!(
+        err.contains("voltage collapse") || err.contains("synchronism"),
+        "{err}"
+    );
+    assert!(!err.trim().contains('\n'), "one line: {err}");
+    let time = column(&t, "time");
+    let end = *time.last().expect("rows kept");
+    assert!(end > 1.0, "the trajectory stops at t = {end} s");
+    check_units("limits_sg13_trip", &t);
+}

@@ -169,6 +169,8 @@ struct Var {
 struct Unit {
     name: String,
     inst: Instance,
+    /// Keep the unit's warnings without printing them (runs of a sweep).
+    quiet: bool,
     /// Variables read after a step (output connectors and connection starts), recorded.
     reads: Vec<Var>,
     values: Vec<f64>,
@@ -314,6 +316,7 @@ impl Unit {
             .instantiate(&c.name)
             .map_err(|e| Error(format!("component '{}': {e}", c.name)))?;
         Ok(Unit {
+            quiet: false,
             name: c.name.clone(),
             inst,
             values: vec![0.0; reads.len()],
@@ -406,7 +409,9 @@ impl Unit {
                 self.name, r.status, r.category, r.message
             );
             if r.status >= Status::Warning {
-                eprintln!("{line}");
+                if !self.quiet {
+                    eprintln!("{line}");
+                }
                 if r.status == Status::Warning {
                     warnings.push(line);
                 }
@@ -867,6 +872,13 @@ impl System {
     }
 
     /// [`System::simulate_with`] with the algorithm named in `opts`, results in memory.
+    /// Keep the units' warnings (in `warnings`) without printing them.
+    pub fn quiet(&mut self) {
+        for u in &mut self.units {
+            u.quiet = true;
+        }
+    }
+
     pub fn simulate(&mut self, opts: &Options) -> Result<Table, Error> {
         let mut recorder = Recorder::default();
         let mut algorithm = opts.algorithm.algorithm();

@@ -558,6 +558,16 @@ pub struct Package {
 }
 
 impl Package {
+    /// The same files with another structure (e.g. other start values), for runs that vary a
+    /// system; its files stay valid as long as `self` lives.
+    pub fn with_system(&self, system: System) -> Package {
+        Package {
+            system,
+            dir: self.dir.clone(),
+            _temp: None,
+        }
+    }
+
     /// The file a component's `source` refers to.
     pub fn source_path(&self, c: &Component) -> PathBuf {
         let s = c.source.as_str();

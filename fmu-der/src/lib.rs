@@ -95,6 +95,11 @@ struct Following {
     fp: GflFpModel,
     /// PLL: states `[∫e, θ_pll]`, input `v_angle`, outputs `[Δf_pll, θ_pll]`.
     pll: LtiSimulator,
+    /// The converter's active and reactive currents (pu of the rated current), following
+    /// their commands with the lag `current.tau`.
+    current: (f64, f64),
+    /// The voltage deviation the v-q droop sees, through the lag `vq.tau`.
+    dv: f64,
 }
 
 #[derive(Clone, Serialize, Deserialize)]
@@ -187,6 +192,8 @@ pub struct Der {
     t_budget: Real,
     i_max: Real,
     priority: Integer,
+    current_tau: Real,
+    vq_tau: Real,
     v_sync: Real,
     t_hold: Real,
     ramp: Real,
@@ -552,7 +559,9 @@ impl Der {
                 })?;
                 fp.check_stability()
                     .map_err(|e| err(&self.adpf_p.name("kind"), e))?;
-                let vq = VqModel::grid_following_shaped(&tdes, &adpf_q, pll_tau, pll_order)
+                // The v-q reference keeps a first-order roll-off: more lag in that loop (gain
+                // X_th/Dq) would destabilize it; its dominant lag is `vq.tau`.
+                let vq = VqModel::grid_following_shaped(&tdes, &adpf_q, pll_tau, 1)
                     .map_err(|e| err(&self.adpf_q.name("kind"), e))?;
                 let (kp, ki) = (s[self.pll_kp], s[self.pll_ki]);
                 if !(kp > 0.0 && ki > 0.0) {
@@ -567,7 +576,13 @@ impl Der {
                     s[self.v_angle],
                 )
                 .expect("PLL state");
-                (Channel::Following(Box::new(Following { fp, pll })), vq)
+                let following = Following {
+                    fp,
+                    pll,
+                    current: (0.0, 0.0),
+                    dv: 0.0,
+                };
+                (Channel::Following(Box::new(following)), vq)
             }
             m => {
                 return Err(err(
@@ -627,9 +642,16 @@ impl Der {
             limit: LimitEpisodes::default(),
             warned_gains: again.unwrap_or(false),
         };
-        if let Channel::Forming(f) = &mut rt.channel {
-            f.e = e0;
-            f.theta = theta0;
+        match &mut rt.channel {
+            Channel::Forming(f) => {
+                f.e = e0;
+                f.theta = theta0;
+            }
+            Channel::Following(g) if !waiting => {
+                let to_rated = s[self.s_base] / s[self.s_rated];
+                g.current = (p * to_rated / v, q * to_rated / v);
+            }
+            Channel::Following(_) => {}
         }
         s[self.theta] = match &rt.channel {
             Channel::Forming(_) => theta0,
@@ -861,9 +883,9 @@ impl Model for Der {
         let pll_order = v.integer(
             Spec::parameter(
                 "pll.order",
-                1,
+                2,
                 "",
-                "order d of the grid-following roll-off 1/(tau_pll s + 1)^d",
+                "order d of the grid-following p-f roll-off 1/(tau_pll s + 1)^d (the v-q reference has order 1); 2 makes m T_pf^-1 strictly proper for every ADPF, so the PLL's proportional path does not reach the current at the gain H/tau_pll of a first-order roll-off",
             )
             .range(0.0, 4.0),
         );
@@ -975,6 +997,22 @@ impl Model for Der {
                 "grid-following at I_max: 0 active current kept first, 1 reactive current kept first",
             )
             .range(0.0, 1.0),
+        );
+        let current_tau = par(
+            v,
+            "current.tau",
+            0.02,
+            "s",
+            "grid-following: time constant of the converter's current response to its references (inner current control and plant, as the WECC REGC_A model's Tg); 0 = immediate",
+            0.0,
+        );
+        let vq_tau = par(
+            v,
+            "vq.tau",
+            0.5,
+            "s",
+            "grid-following: time constant of the plant's voltage control ahead of the v-q droop (a current-injecting unit's droop 1/Dq through the grid's impedance needs a dominant lag); 0 = none",
+            0.0,
         );
         let v_sync = v.real(
             Spec::parameter(
@@ -1130,6 +1168,8 @@ impl Model for Der {
             t_budget,
             i_max,
             priority,
+            current_tau,
+            vq_tau,
             v_sync,
             t_hold,
             ramp,
@@ -1409,14 +1449,37 @@ impl Der {
                     _ => {}
                 }
                 let dp = g.fp.step(rt.df_held, h) / to_dvpp;
-                let dq = rt.vq.step(dv, h) / to_dvpp;
+                // The v-q droop of a current-injecting unit is a loop through the grid's
+                // impedance with gain X_th/Dq (about 10 at bus 2 for Dq = 0.01): stable only
+                // behind a dominant lag, the plant's voltage control (`vq.tau`).
+                let tau_v = s[self.vq_tau];
+                let kv = if tau_v > 0.0 {
+                    -(-h / tau_v).exp_m1()
+                } else {
+                    1.0
+                };
+                g.dv += kv * (dv - g.dv);
+                let dq = rt.vq.step(g.dv, h) / to_dvpp;
                 // References as currents at the measured voltage, limited, and back.
                 let vm = v.max(limits::V_FLOOR) / to_rated;
                 let wanted = ((p_set + dp) / vm, (rt.q0 + dq) / vm);
                 let ((ip, iq), cur, dcl) =
                     limits::saturate_following(wanted, v, i_max, budget, s[self.priority]);
-                s[self.p_ref] = ip * vm;
-                s[self.q_ref] = iq * vm;
+                // The converter's currents follow their commands with the lag `current.tau`
+                // (its inner current control and the plant's response): an injection that moved
+                // at once would close a loop through the bus angle and the PLL, and through the
+                // bus voltage and the v-q droop, that a one-step exchange delay makes oscillate
+                // from one step to the next.
+                let tau = s[self.current_tau];
+                let k = if tau > 0.0 { -(-h / tau).exp_m1() } else { 1.0 };
+                g.current.0 += k * (ip - g.current.0);
+                g.current.1 += k * (iq - g.current.1);
+                // The limits hold for the current itself, also while it follows its command.
+                let (held, _, _) =
+                    limits::saturate_following(g.current, v, i_max, budget, s[self.priority]);
+                g.current = held;
+                s[self.p_ref] = g.current.0 * vm;
+                s[self.q_ref] = g.current.1 * vm;
                 let y = g.pll.step_all(v_angle, h);
                 rt.df_held = y[0];
                 s[self.df] = y[0];
@@ -1498,6 +1561,7 @@ impl Der {
                         g.pll
                             .set_state(DVector::from_column_slice(&[0.0, v_angle]), v_angle)
                             .expect("PLL state");
+                        g.current = (0.0, 0.0);
                     }
                 }
                 s[self.synchronized] = true;

@@ -32,7 +32,7 @@ pub mod ports;
 pub mod powerflow;
 pub mod snapshot;
 
-pub use case::{Case, CaseError, DerKind, Event, LoadModel};
+pub use case::{Case, CaseError, DerKind, DerSlot, Event, LoadModel};
 pub use events::{EventOverride, EventState};
 pub use grid::{
     DerInput, DerOutput, DerSetpoint, Grid, GridError, MachineOutput, Outputs, PccOutput,

@@ -3,6 +3,7 @@
 mod catalog;
 mod docs;
 mod scenario;
+mod sweep;
 mod win64;
 
 use catalog::{BENCHES, FMUS, VARIANTS};
@@ -71,6 +72,10 @@ tasks:
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
            Rust tests (the win64 binaries under wine among them), then the Python (fmpy) tests
            in target/venv
+  sweep [--runs N] [--seed S]
+           bundle, then run case study II (case2_load_eps000 ... eps100) on all cores: the 42 MW
+           step per ε and N (default 40) seeded Monte Carlo load steps each; summary in
+           results/case2_sweep.csv, distributions in tests/figures/case2_distributions.svg
   docs     regenerate README.md's variable tables from the FMUs' model descriptions";
 
 fn main() -> ExitCode {
@@ -87,6 +92,7 @@ fn main() -> ExitCode {
         Some("bundle") => bundle(&args[1..]).map(|_| ()),
         Some("cosim") => run(master_binary("cosim").args(&args[1..])),
         Some("demo") => demo(),
+        Some("sweep") => bundle(&[]).and_then(|_| sweep::sweep(&root(), &args[1..])),
         Some("bench") => bench(),
         Some("test") => test(),
         Some("docs") => write_docs(),

@@ -68,6 +68,109 @@ pub struct DvppSpec {
     pub d: f64,
     #[serde(rename = "Dq")]
     pub dq: f64,
+    /// Hybrid DVPP (case study II): every unit is split into a grid-forming part of rating
+    /// `eps · S` and a grid-following part of rating `(1 - eps) · S`, each with its share of the
+    /// availability, dispatch and participation; 1 (or absent): grid-forming units only as the
+    /// case has them, 0: grid-following only.
+    #[serde(default)]
+    pub eps: Option<f64>,
+    /// With `eps`: the units' converter ratings times this (their dispatch and the primary
+    /// sources' availability stay), for severe events (the paper's outage).
+    #[serde(default)]
+    pub rating_scale: Option<f64>,
+}
+
+/// DER parameters in power units that a split scales with the part (pu on S_base).
+const SPLIT_POWERS: [&str; 2] = [der::P_AVAIL0, "avail.dP"];
+
+/// The parts of a unit split at `eps`: (name suffix, grid-forming, part); a part of zero is
+/// left out.
+fn parts(eps: f64) -> Vec<(&'static str, bool, f64)> {
+    [("_gfm", true, eps), ("_gfl", false, 1.0 - eps)]
+        .into_iter()
+        .filter(|&(_, _, x)| x > 0.0)
+        .collect()
+}
+
+/// The DERs split at `eps`, in the order of [`split_case`]'s slots: each part named after its
+/// unit and form, its power-valued start values scaled, and a complement's share set to the part.
+fn split_ders(ders: &[DerSpec], eps: f64) -> Vec<DerSpec> {
+    parts(eps)
+        .into_iter()
+        .flat_map(|(suffix, _, part)| {
+            ders.iter().map(move |d| {
+                let mut start = d.start.clone();
+                for key in SPLIT_POWERS {
+                    if let Some(x) = start.get(key).and_then(|v| v.as_float()) {
+                        start.insert(key.into(), real(x * part));
+                    }
+                }
+                start.entry("adpf.p.share").or_insert_with(|| real(part));
+                // The preset's dc gains split like the unit (the operator sends the actual ones
+                // from the first step; these keep the initialization consistent).
+                let preset = d
+                    .preset
+                    .as_deref()
+                    .and_then(|p| Value::String(p.into()).try_into::<fmu_der::Preset>().ok());
+                if let Some(p) = preset {
+                    let u = fmu_der::UnitDefaults::of(Some(p));
+                    let gains = [
+                        (der::MU_P.to_string(), u.mu_p),
+                        (der::MU_Q.to_string(), u.mu_q),
+                    ]
+                    .into_iter()
+                    .chain(
+                        u.mu_p_lpf
+                            .iter()
+                            .enumerate()
+                            .map(|(j, &m)| (der::mu_p_lpf(j + 1), m)),
+                    );
+                    for (key, mu) in gains {
+                        start.entry(key).or_insert_with(|| real(mu * part));
+                    }
+                }
+                DerSpec {
+                    name: format!("{}{suffix}", d.name),
+                    preset: d.preset.clone(),
+                    start,
+                }
+            })
+        })
+        .collect()
+}
+
+/// The grid case with every DER slot split into its grid-forming and grid-following parts
+/// (ratings and dispatch scaled, the PCC's slot list following).
+fn split_case(case: &fmu_grid::Case, eps: f64, scale: f64) -> fmu_grid::Case {
+    let mut out = case.clone();
+    out.ders.clear();
+    let mut new_index = vec![Vec::new(); case.ders.len()];
+    for (&(suffix, forming, part), _) in parts(eps).iter().zip(0..) {
+        for (k, slot) in case.ders.iter().enumerate() {
+            let name = slot.name.clone().unwrap_or_else(|| format!("der{}", k + 1));
+            out.ders.push(fmu_grid::DerSlot {
+                name: Some(format!("{name}{suffix}")),
+                kind: if forming {
+                    fmu_grid::DerKind::GridForming
+                } else {
+                    fmu_grid::DerKind::GridFollowing
+                },
+                rating_mva: slot.rating_mva * part * scale,
+                p_mw: slot.p_mw * part,
+                q_mvar: slot.q_mvar * part,
+                ..slot.clone()
+            });
+            new_index[k].push(out.ders.len());
+        }
+    }
+    if let Some(pcc) = &mut out.pcc {
+        pcc.slots = pcc
+            .slots
+            .iter()
+            .flat_map(|&s| new_index.get(s - 1).cloned().unwrap_or_default())
+            .collect();
+    }
+    out
 }
 
 #[derive(Debug, Deserialize, Default)]
@@ -200,6 +303,8 @@ struct DerUnit {
     slot: usize,
     forming: bool,
     role: Role,
+    /// A complement: the operator's low-pass gains it reads (1-based, in the operator's order).
+    closes: Vec<usize>,
 }
 
 impl Job<'_, '_> {
@@ -286,8 +391,24 @@ impl Job<'_, '_> {
         let config: fmu_grid::GridConfig = Value::Table(model.clone())
             .try_into()
             .map_err(|e| here(format!("[grid]: {e}")))?;
-        let case = config.load_case(Some(&staging)).map_err(here)?;
+        let mut case = config.load_case(Some(&staging)).map_err(here)?;
         let _ = std::fs::remove_dir_all(&staging);
+        let eps = self.sc.dvpp.as_ref().and_then(|d| d.eps);
+        if let Some(eps) = eps {
+            // The split case, with the scenario's events and filter already in it, goes to the
+            // grid FMU as its case file.
+            let scale = self.sc.dvpp.as_ref().and_then(|d| d.rating_scale);
+            case = split_case(&case, eps, scale.unwrap_or(1.0));
+            let file = self.out_dir.join(format!(".{}-case.toml", self.name));
+            let text = toml::to_string(&case).map_err(|e| here(format!("split case: {e}")))?;
+            std::fs::write(&file, text).map_err(|e| here(format!("{}: {e}", file.display())))?;
+            model = Table::new();
+            model.insert(
+                "case_file".into(),
+                Value::String(format!(".{}-case.toml", self.name)),
+            );
+            files = vec![file];
+        }
         let pf = fmu_grid::Grid::new(&case)
             .map_err(|e| here(format!("grid: {e}")))?
             .outputs();
@@ -299,7 +420,10 @@ impl Job<'_, '_> {
             )));
         }
         let start = self.sc.grid.start.clone();
-        let md = self.build(GRID_FMU, GRID, model, &start, files)?;
+        let md = self.build(GRID_FMU, GRID, model, &start, files.clone())?;
+        if eps.is_some() {
+            let _ = std::fs::remove_file(&files[0]);
+        }
         Ok(GridUnit {
             unit: Unit {
                 name: GRID.into(),
@@ -364,25 +488,39 @@ impl Job<'_, '_> {
                 slot: k + 1,
                 forming,
                 role,
+                closes: Vec::new(),
             });
         }
-        // A complement unit closes the low-pass units of this scenario: their time constants.
-        let lpf: Vec<(f64, i64)> = ders
+        // A complement unit closes the low-pass units of this scenario (with a complement per
+        // form, a hybrid DVPP: those of its own form): their time constants, and which of the
+        // operator's low-pass gains it reads.
+        let lpf: Vec<(bool, f64, i64)> = ders
             .iter()
             .filter(|d| d.role == Role::LowPass)
             .map(|d| {
                 let tau = start_of(&d.unit.md, der::ADPF_P_TAU).unwrap_or(0.0);
                 let order = start_of(&d.unit.md, der::ADPF_P_ORDER).unwrap_or(1.0);
-                (tau, order as i64)
+                (d.forming, tau, order as i64)
             })
             .collect();
+        let per_form = ders.iter().filter(|d| d.role == Role::Complement).count() > 1;
         for (k, d) in ders.iter_mut().enumerate() {
             if d.role != Role::Complement {
                 continue;
             }
+            let closed: Vec<(usize, f64, i64)> = lpf
+                .iter()
+                .enumerate()
+                .filter(|(_, u)| !per_form || u.0 == d.forming)
+                .map(|(j, &(_, tau, order))| (j + 1, tau, order))
+                .collect();
+            d.closes = closed.iter().map(|c| c.0).collect();
             let mut extra = Table::new();
-            extra.insert(der::ADPF_P_N_LPF.into(), Value::Integer(lpf.len() as i64));
-            for (j, &(tau, order)) in lpf.iter().enumerate() {
+            extra.insert(
+                der::ADPF_P_N_LPF.into(),
+                Value::Integer(closed.len() as i64),
+            );
+            for (j, &(_, tau, order)) in closed.iter().enumerate() {
                 extra.insert(der::adpf_p_lpf_tau(j + 1), real(tau));
                 extra.insert(der::adpf_p_lpf_order(j + 1), Value::Integer(order));
             }
@@ -460,11 +598,11 @@ fn wire(from: &str, output: &str, to: &str, input: &str) -> Wire {
     ((from.into(), output.into()), (to.into(), input.into()))
 }
 
-/// A wiring rule: the connections it makes for one DER, given the number of low-pass units.
-type DerRule = fn(&DerUnit, usize) -> Vec<Wire>;
+/// A wiring rule: the connections it makes for one DER.
+type DerRule = fn(&DerUnit) -> Vec<Wire>;
 
 /// Grid → DER: the measurements at the DER's slot.
-fn slot_measurements(d: &DerUnit, _: usize) -> Vec<Wire> {
+fn slot_measurements(d: &DerUnit) -> Vec<Wire> {
     let (n, k) = (d.unit.name.as_str(), d.slot);
     vec![
         wire(GRID, &grid::der_p(k), n, der::P),
@@ -476,7 +614,7 @@ fn slot_measurements(d: &DerUnit, _: usize) -> Vec<Wire> {
 
 /// DER → grid: what drives its slot (`E∠θ` grid-forming, `p_ref`, `q_ref` grid-following) and
 /// its converter's limits.
-fn slot_drive(d: &DerUnit, _: usize) -> Vec<Wire> {
+fn slot_drive(d: &DerUnit) -> Vec<Wire> {
     let (n, k) = (d.unit.name.as_str(), d.slot);
     // The converter's limits go with its drive: the slot's output stage holds them.
     if d.forming {
@@ -497,7 +635,7 @@ fn slot_drive(d: &DerUnit, _: usize) -> Vec<Wire> {
 }
 
 /// DER and grid → operator: the DER's availability and its slot's power.
-fn operator_measurements(d: &DerUnit, _: usize) -> Vec<Wire> {
+fn operator_measurements(d: &DerUnit) -> Vec<Wire> {
     let (n, k) = (d.unit.name.as_str(), d.slot);
     vec![
         wire(n, der::P_AVAIL, OPERATOR, &op::der_p_avail(k)),
@@ -508,13 +646,16 @@ fn operator_measurements(d: &DerUnit, _: usize) -> Vec<Wire> {
 }
 
 /// Operator → DER: the dc gains its role takes.
-fn operator_gains(d: &DerUnit, n_lpf: usize) -> Vec<Wire> {
+fn operator_gains(d: &DerUnit) -> Vec<Wire> {
     let (n, k) = (d.unit.name.as_str(), d.slot);
     let mut wires = vec![wire(OPERATOR, &op::der_mu_q(k), n, der::MU_Q)];
     match d.role {
         Role::LowPass => wires.push(wire(OPERATOR, &op::der_mu_p(k), n, der::MU_P)),
         Role::Complement => wires.extend(
-            (1..=n_lpf).map(|j| wire(OPERATOR, &op::der_mu_p_lpf(k, j), n, &der::mu_p_lpf(j))),
+            d.closes
+                .iter()
+                .enumerate()
+                .map(|(i, &j)| wire(OPERATOR, &op::der_mu_p_lpf(k, j), n, &der::mu_p_lpf(i + 1))),
         ),
         Role::HighPass | Role::BandPass => {}
     }
@@ -541,10 +682,9 @@ const OPERATOR_RULES: &[DerRule] = &[operator_measurements, operator_gains];
 
 /// Every connection of the system.
 fn wiring(ders: &[DerUnit], operator: bool) -> Vec<Wire> {
-    let n_lpf = ders.iter().filter(|d| d.role == Role::LowPass).count();
     let per_der = |rules: &[DerRule]| -> Vec<Wire> {
         ders.iter()
-            .flat_map(|d| rules.iter().flat_map(move |rule| rule(d, n_lpf)))
+            .flat_map(|d| rules.iter().flat_map(move |rule| rule(d)))
             .collect()
     };
     let mut wires = per_der(DER_RULES);
@@ -609,7 +749,23 @@ fn system(
 /// Bundle the scenario at `path` into `out_dir` and write `<name>.ssp` there.
 pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<PathBuf, String> {
     let name = name_of(path)?;
-    let sc = Scenario::read(path)?;
+    let mut sc = Scenario::read(path)?;
+    if let Some(eps) = sc.dvpp.as_ref().and_then(|d| d.eps) {
+        if !(0.0..=1.0).contains(&eps) {
+            return Err(format!(
+                "{}: [dvpp] eps = {eps}: the grid-forming share is in [0, 1]",
+                path.display()
+            ));
+        }
+        let scale = sc.dvpp.as_ref().and_then(|d| d.rating_scale).unwrap_or(1.0);
+        if !(scale > 0.0 && scale.is_finite()) {
+            return Err(format!(
+                "{}: [dvpp] rating_scale = {scale}: must be > 0",
+                path.display()
+            ));
+        }
+        sc.der = split_ders(&sc.der, eps);
+    }
     std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
     let mut job = Job {
         path,
@@ -793,8 +949,65 @@ mod tests {
         }
         std::fs::write(&path, text).unwrap();
         // 6 DERs of 11 connections, 3 grid-forming with 3 limits and 3 grid-following with 1;
-        // 4 low-pass mu_p; 2 complements of 4 gains; 4 PCC.
-        assert_wired(&path, 6 * 11 + 3 * 3 + 3 + 4 + 2 * 4 + 4);
+        // 4 low-pass mu_p; 2 complements closing the 2 low-pass units of their form; 4 PCC.
+        assert_wired(&path, 6 * 11 + 3 * 3 + 3 + 4 + 2 * 2 + 4);
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn eps_splits_every_unit_and_its_slot() {
+        let dir = std::env::temp_dir().join(format!("xtask-eps-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for (eps, connections) in [
+            // Both forms: as the hand-written hybrid DVPP.
+            (0.25, 6 * 11 + 3 * 3 + 3 + 4 + 2 * 2 + 4),
+            // One form only: three units, one complement closing both low-pass units.
+            (0.0, 3 * 11 + 3 + 2 + 2 + 4),
+            (1.0, 3 * (11 + 3) + 2 + 2 + 4),
+        ] {
+            let path = dir.join(format!("eps{}.toml", (eps * 100.0) as u32));
+            let mut text = format!(
+                "description = \"split\"\n[experiment]\nstop = 1.0\nstep = 1e-3\n\
+                 [grid]\ncase = \"ieee9_dvpp\"\n[dvpp]\nS_dvpp = 96.0\nH = 5.55\nD = 33.33\n\
+                 Dq = 0.01\neps = {eps}\n[operator]\n"
+            );
+            for name in ["wind", "pv", "bess"] {
+                text += &format!(
+                    "[[der]]\nname = \"{name}\"\npreset = \"{name}\"\n[der.start]\nP_avail0 = 0.5\n"
+                );
+            }
+            std::fs::write(&path, text).unwrap();
+            assert_wired(&path, connections);
+            let (system, mds) = bundled(&path);
+            let ders: Vec<&str> = system
+                .components
+                .iter()
+                .map(|c| c.name.as_str())
+                .filter(|n| n.ends_with("_gfm") || n.ends_with("_gfl"))
+                .collect();
+            assert_eq!(ders.len(), if eps == 0.25 { 6 } else { 3 }, "{ders:?}");
+            // Each part: rating and availability times its share of the unit.
+            let start = |c: &str, n: &str| {
+                system
+                    .components
+                    .iter()
+                    .find(|x| x.name == c)
+                    .and_then(|x| x.parameters.iter().find(|p| p.name == n))
+                    .and_then(|p| match p.value {
+                        ssp::Value::Real(x) => Some(x),
+                        _ => None,
+                    })
+                    .or_else(|| start_of(&mds[c], n))
+            };
+            for (suffix, part) in [("_gfm", eps), ("_gfl", 1.0 - eps)] {
+                if part == 0.0 {
+                    continue;
+                }
+                let c = format!("pv{suffix}");
+                assert_eq!(start(&c, der::S_RATED), Some(73.0 * part), "{c}");
+                assert_eq!(start(&c, der::P_AVAIL0), Some(0.5 * part), "{c}");
+            }
+        }
         let _ = std::fs::remove_dir_all(&dir);
     }
 }

@@ -1,0 +1,86 @@
+//! Case study II end to end in our master: the hybrid DVPP at every grid-forming share ε
+//! (`case2_load_eps000` … `eps100`, 42 MW at bus 2) matches `T_des` about equally well, a larger
+//! ε lowers the centre-of-inertia RoCoF, no unit oscillates from one step to the next, and every
+//! unit stays within its current limit, its dc link within its range and its energy account
+//! closed.
+
+use dvpp_cosim::master::{self, Options};
+use dvpp_cosim::Table;
+use dvpp_e2e::scenario;
+use dvpp_report::casestudy::Signals;
+
+const EPS: [&str; 5] = ["000", "025", "050", "075", "100"];
+
+fn column(t: &Table, name: &str) -> Vec<f64> {
+    t.column(name).unwrap_or_else(|| panic!("no column {name}"))
+}
+
+/// The largest second difference `|x[k+1] - 2 x[k] + x[k-1]|` from sample `from` on.
+fn jitter(x: &[f64], from: usize) -> f64 {
+    x[from..]
+        .windows(3)
+        .map(|w| (w[2] - 2.0 * w[1] + w[0]).abs())
+        .fold(0.0, f64::max)
+}
+
+#[test]
+fn every_grid_forming_share_matches_t_des_without_step_to_step_oscillation() {
+    let mut nrmse = Vec::new();
+    let mut rocof = Vec::new();
+    for eps in EPS {
+        let name = format!("case2_load_eps{eps}");
+        let t = master::simulate(&scenario(&name), &Options::default())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let m = Signals::of(&t).unwrap_or_else(|e| panic!("{e}")).metrics();
+        let time = column(&t, "time");
+        let coi = column(&t, "grid.coi.f");
+        let k = |s: f64| time.partition_point(|&x| x < s - 1e-9);
+        let r = (coi[k(1.1)] - coi[k(1.0)]) / 0.1 * 50.0;
+        // After 3 s no slot's power may alternate from one 1 ms step to the next.
+        let mut worst = 0.0_f64;
+        let mut slot = 1;
+        while let Some(p) = t.column(&format!("grid.der[{slot}].p")) {
+            worst = worst.max(jitter(&p, k(3.0)));
+            slot += 1;
+        }
+        println!(
+            "{name}: f NRMSE {:.2} %, v NRMSE {:.1} %, COI RoCoF (100 ms) {r:.4} Hz/s, largest second difference of a slot's p after 3 s {worst:.1e} pu",
+            m.f_nrmse * 100.0,
+            m.v_nrmse * 100.0
+        );
+        assert!(m.f_nrmse <= 0.05, "{name}: f NRMSE {}", m.f_nrmse);
+        assert!(worst < 1e-3, "{name}: step-to-step oscillation {worst}");
+        for c in t.columns.iter().filter(|c| c.ends_with(".i_ac")) {
+            let unit = c.trim_end_matches(".i_ac");
+            let (i, lim) = (column(&t, c), column(&t, &format!("{unit}.i_limit")));
+            let ratio = i.iter().zip(&lim).map(|(a, b)| a / b).fold(0.0, f64::max);
+            assert!(ratio <= 1.05, "{name} {unit}: current {ratio} x I_max");
+            let v_dc = column(&t, &format!("{unit}.v_dc"));
+            assert!(
+                v_dc.iter().all(|v| (0.79..=1.21).contains(v)),
+                "{name} {unit}: v_dc left its range"
+            );
+            let last = |v: &str| *column(&t, &format!("{unit}.{v}")).last().unwrap();
+            let w0 = column(&t, &format!("{unit}.energy.stored"))[0];
+            let (src, ac) = (last("energy.source"), last("energy.ac"));
+            let residual = src - ac - last("energy.loss") - (last("energy.stored") - w0);
+            assert!(
+                residual.abs() <= 1e-6 * (src.abs() + ac.abs()),
+                "{name} {unit}: energy residual {residual}"
+            );
+        }
+        nrmse.push(m.f_nrmse);
+        rocof.push(r);
+    }
+    let spread = nrmse.iter().cloned().fold(f64::MIN, f64::max)
+        - nrmse.iter().cloned().fold(f64::MAX, f64::min);
+    assert!(
+        spread <= 0.01,
+        "frequency NRMSE differs by {:.2} pp across ε",
+        spread * 100.0
+    );
+    // A larger grid-forming share gives a smaller COI RoCoF (in magnitude).
+    for w in rocof.windows(2) {
+        assert!(w[1] > w[0], "COI RoCoF does not fall with ε: {rocof:?}");
+    }
+}

@@ -100,6 +100,8 @@ struct Following {
     current: (f64, f64),
     /// The voltage deviation the v-q droop sees, through the lag `vq.tau`.
     dv: f64,
+    /// The PLL gains its model was built with (tunable: rebuilt when they change).
+    gains: (f64, f64),
 }
 
 #[derive(Clone, Serialize, Deserialize)]
@@ -581,6 +583,7 @@ impl Der {
                     pll,
                     current: (0.0, 0.0),
                     dv: 0.0,
+                    gains: (kp, ki),
                 };
                 (Channel::Following(Box::new(following)), vq)
             }
@@ -779,6 +782,10 @@ impl Model for Der {
         let par = |v: &mut Variables, name: &str, start: f64, unit: &str, desc: &str, min: f64| {
             v.real(Spec::parameter(name, start, unit, desc).min(min))
         };
+        // Gains, limits and set points a host may retune between steps; structure stays fixed.
+        let tun = |v: &mut Variables, name: &str, start: f64, unit: &str, desc: &str, min: f64| {
+            v.real(Spec::parameter(name, start, unit, desc).min(min).tunable())
+        };
         let s_rated = par(
             v,
             ports::S_RATED,
@@ -856,21 +863,21 @@ impl Model for Der {
         );
         let adpf_p = AdpfParams::declare(v, "p", &u.adpf_p, true);
         let adpf_q = AdpfParams::declare(v, "q", &u.adpf_q, false);
-        let pll_kp = par(
+        let pll_kp = tun(
             v,
             "pll.kp",
             60.0,
             "1/s",
             "PLL proportional gain (grid-following)",
-            0.0,
+            1e-6,
         );
-        let pll_ki = par(
+        let pll_ki = tun(
             v,
             "pll.ki",
             240.0,
             "1/s2",
             "PLL integral gain (grid-following)",
-            0.0,
+            1e-6,
         );
         let pll_tau = par(
             v,
@@ -889,7 +896,7 @@ impl Model for Der {
             )
             .range(0.0, 4.0),
         );
-        let qpi_kp = par(
+        let qpi_kp = tun(
             v,
             "qpi.kp",
             0.05,
@@ -904,9 +911,10 @@ impl Model for Der {
                 "pu",
                 "grid-forming: modulation limit, the largest voltage magnitude the converter can impose at the nominal dc voltage (E <= E_max * v_dc)",
             )
-            .min(0.0),
+            .min(0.0)
+            .tunable(),
         );
-        let qpi_ki = par(
+        let qpi_ki = tun(
             v,
             "qpi.ki",
             5.0,
@@ -981,13 +989,13 @@ impl Model for Der {
             "the ac side may draw the link's usable energy (above v_dc_min) at most at the rate usable energy / t_budget beyond the source's power",
             0.0,
         );
-        let i_max = par(
+        let i_max = tun(
             v,
             "I_max",
             1.2,
             "pu",
             "current limit, pu of the rated current (S_rated at 1 pu voltage)",
-            0.0,
+            1e-3,
         );
         let priority = v.integer(
             Spec::parameter(
@@ -996,9 +1004,10 @@ impl Model for Der {
                 "",
                 "grid-following at I_max: 0 active current kept first, 1 reactive current kept first",
             )
-            .range(0.0, 1.0),
+            .range(0.0, 1.0)
+            .tunable(),
         );
-        let current_tau = par(
+        let current_tau = tun(
             v,
             "current.tau",
             0.02,
@@ -1006,7 +1015,7 @@ impl Model for Der {
             "grid-following: time constant of the converter's current response to its references (inner current control and plant, as the WECC REGC_A model's Tg); 0 = immediate",
             0.0,
         );
-        let vq_tau = par(
+        let vq_tau = tun(
             v,
             "vq.tau",
             0.5,
@@ -1052,9 +1061,10 @@ impl Model for Der {
                 "1",
                 "deloading: the set point stays at or below deload * P_avail - G_dc (reserve for participation)",
             )
-            .range(1e-3, 1.0),
+            .range(1e-3, 1.0)
+            .tunable(),
         );
-        let p_avail0 = par(
+        let p_avail0 = tun(
             v,
             ports::P_AVAIL0,
             u.p_avail0,
@@ -1062,18 +1072,24 @@ impl Model for Der {
             "available active power of the primary source, on S_base",
             0.0,
         );
-        let avail_t = v.real(Spec::parameter(
-            "avail.t_step",
-            1.0,
-            "s",
-            "time of the availability step (a cloud, a wind drop)",
-        ));
-        let avail_dp = v.real(Spec::parameter(
-            "avail.dP",
-            0.0,
-            "pu",
-            "availability step on S_base (negative = less available power)",
-        ));
+        let avail_t = v.real(
+            Spec::parameter(
+                "avail.t_step",
+                1.0,
+                "s",
+                "time of the availability step (a cloud, a wind drop)",
+            )
+            .tunable(),
+        );
+        let avail_dp = v.real(
+            Spec::parameter(
+                "avail.dP",
+                0.0,
+                "pu",
+                "availability step on S_base (negative = less available power)",
+            )
+            .tunable(),
+        );
         let p = v.real(Spec::input(
             ports::P,
             u.p,
@@ -1480,6 +1496,17 @@ impl Der {
                 g.current = held;
                 s[self.p_ref] = g.current.0 * vm;
                 s[self.q_ref] = g.current.1 * vm;
+                let gains = (s[self.pll_kp], s[self.pll_ki]);
+                if gains != g.gains {
+                    g.pll
+                        .set_system(pll_model(gains.0, gains.1, s[self.f_nom]))
+                        .expect("PLL order");
+                    g.gains = gains;
+                    ctx.event(format!(
+                        "PLL gains retuned at t = {t}: kp = {}, ki = {}",
+                        gains.0, gains.1
+                    ));
+                }
                 let y = g.pll.step_all(v_angle, h);
                 rt.df_held = y[0];
                 s[self.df] = y[0];

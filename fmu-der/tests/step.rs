@@ -251,7 +251,7 @@ fn grid_following_unit_locks_to_a_frequency_offset_and_follows_its_droop() {
 fn bad_parameters_fail_initialization_naming_the_parameter() {
     let cases: &[(&[(&str, f64)], &str)] = &[
         (&[("Tdes.D", 0.0)], "'Tdes.D'"),
-        (&[("mode", 2.0), ("pll.kp", 0.0)], "'pll.kp'"),
+        (&[("adpf.p.kind", 1.0), ("adpf.p.tau", 0.0)], "'adpf.p.tau'"),
         (&[("v_dc_min", 1.0)], "'v_dc_min'"),
         (&[("C_dc", 0.0)], "'C_dc'"),
         (
@@ -366,5 +366,38 @@ fn a_restored_state_replays_the_same_trajectory() {
         let state = other.deserialize_fmu_state(&bytes).unwrap();
         assert_eq!(other.set_fmu_state(&state), Status::Ok);
         assert_eq!(run(&mut other), first, "mode {mode}: after deserialization");
+    }
+}
+
+#[test]
+fn gains_limits_and_set_points_are_tunable_between_steps_and_structure_is_not() {
+    // A host retunes the PLL gains of a grid-following unit after initialization: from then on
+    // it moves exactly like a unit initialized with those gains.
+    let drive = |h: &mut Harness<Der>| -> Vec<f64> {
+        (0..500)
+            .map(|k| {
+                h.set("v_angle", -2.0 * PI * F_NOM * 0.002 * k as f64 * DT);
+                h.step(DT);
+                h.get("df")
+            })
+            .collect()
+    };
+    let mut built = unit(&[("mode", 2.0), ("pll.kp", 30.0), ("pll.ki", 100.0)]);
+    let mut retuned = unit(&[("mode", 2.0)]);
+    assert_eq!(retuned.try_set("pll.kp", 30.0), Status::Ok);
+    assert_eq!(retuned.try_set("pll.ki", 100.0), Status::Ok);
+    assert_eq!(drive(&mut built), drive(&mut retuned));
+    // In step mode tunable parameters are accepted, structure and fixed parameters refused (a
+    // refused call is an fmi2Error, after which the instance only resets).
+    for (name, x) in [
+        ("qpi.kp", 0.2),
+        ("I_max", 1.1),
+        ("P_avail0", 0.5),
+        ("deload", 0.9),
+    ] {
+        assert_eq!(retuned.try_set(name, x), Status::Ok, "{name}");
+    }
+    for (name, x) in [("S_rated", 50.0), ("k_dc", 50.0), ("Tdes.H", 3.0)] {
+        assert_eq!(retuned.try_set(name, x), Status::Error, "{name}");
     }
 }

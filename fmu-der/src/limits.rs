@@ -2,7 +2,9 @@
 //! grid-following), the dc link's power budget, the modulation limit, and their episodes.
 //!
 //! Currents are pu on `S_rated` at 1 pu voltage, split along the measured terminal voltage into an
-//! active part `i_p` (`p = |V| i_p`) and a reactive part `i_q` (`q = |V| i_q`).
+//! active part `i_p` (`p = |V| i_p`) and a reactive part `i_q` (`q = |V| i_q`). A grid-forming
+//! unit's saturation is enforced by the grid's slot in every network solution (the DER sends
+//! `i_limit`, `p_min`, `p_max`); here the same rule estimates what it holds back.
 
 use dvpp_control::Complex;
 use fmi_export::Context;

@@ -242,6 +242,9 @@ fn a_unit_started_at_zero_voltage_waits_then_synchronizes_within_its_ratings() {
             }
         }
         let t = synced_at.expect("never synchronized");
+        println!(
+            "mode {mode}: synchronized at t = {t:.3} s, largest current {worst_i:.3} pu, largest |q_ref| {worst_q:.3} pu"
+        );
         assert!(
             (0.2..0.4).contains(&t),
             "mode {mode}: synchronized at {t} s"

@@ -738,7 +738,12 @@ impl Der {
         s[self.e_loss] = rt.dc.e_loss * s_rated;
         s[self.w_dc] = rt.dc.energy() * s_rated;
         let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
-        s[self.i_ac] = p.hypot(q) / v.max(limits::V_FLOOR) * s_base / s_rated;
+        // At a dead bus no power flows: inputs that say otherwise are start values, not a current.
+        s[self.i_ac] = if v < limits::V_FLOOR {
+            0.0
+        } else {
+            p.hypot(q) / v * s_base / s_rated
+        };
         // The dc budget at the terminal: less the R_f loss at the present current.
         let (r, _) = self.slot_impedance(s);
         let r_loss = if s[self.mode] == GRID_FORMING {

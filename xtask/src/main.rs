@@ -12,8 +12,15 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
-/// Python packages the tests install into their own virtual environment.
-const PYTHON_PACKAGES: &[&str] = &["fmpy==0.3.32", "libcosimpy==0.0.6", "pytest==8.4.2"];
+/// Python packages the tests install into their own virtual environment. DPsim (the EMT host of
+/// `tests/python/test_dpsim.py`) has wheels for CPython 3.10-3.13 on x86_64 Linux (and win_amd64)
+/// only, so it installs only there (its marker); elsewhere that test skips and says why.
+const PYTHON_PACKAGES: &[&str] = &[
+    "fmpy==0.3.32",
+    "libcosimpy==0.0.6",
+    "pytest==8.4.2",
+    "dpsim==1.4.0; sys_platform == 'linux' and platform_machine == 'x86_64' and python_version >= '3.10' and python_version < '3.14'",
+];
 
 type Result<T = ()> = std::result::Result<T, String>;
 

@@ -202,6 +202,7 @@ pub struct Der {
     p_avail0: Real,
     avail_t: Real,
     avail_dp: Real,
+    redispatch: Real,
     p: Real,
     q: Real,
     v: Real,
@@ -1095,6 +1096,15 @@ impl Model for Der {
             )
             .tunable(),
         );
+        let redispatch = v.real(
+            Spec::parameter(
+                "dispatch.dP",
+                0.0,
+                "pu",
+                "change of the dispatch on S_base (the dispatch is the power-flow point at initialization; a host redispatches the unit with this)",
+            )
+            .tunable(),
+        );
         let p = v.real(Spec::input(
             ports::P,
             u.p,
@@ -1197,6 +1207,7 @@ impl Model for Der {
             p_avail0,
             avail_t,
             avail_dp,
+            redispatch,
             p,
             q,
             v: vv,
@@ -1384,7 +1395,8 @@ impl Der {
                 1.0
             }
         });
-        let p_set = (rt.p0 * ramp).min(self.headroom_limit(s, t));
+        let dispatch = rt.p0 + s[self.redispatch];
+        let p_set = (dispatch * ramp).min(self.headroom_limit(s, t));
         s[self.p_set] = p_set;
         let (v, v_angle) = (s[self.v], s[self.v_angle]);
         let budget = rt.dc.ac_budget();

@@ -397,6 +397,16 @@ fn gains_limits_and_set_points_are_tunable_between_steps_and_structure_is_not() 
     ] {
         assert_eq!(retuned.try_set(name, x), Status::Ok, "{name}");
     }
+    // A redispatch moves the set point by its amount at the next step.
+    let before = retuned.get("p_set");
+    assert_eq!(retuned.try_set("dispatch.dP", -0.05), Status::Ok);
+    retuned.step(DT);
+    close(
+        retuned.get("p_set"),
+        before - 0.05,
+        1e-12,
+        "redispatched set point",
+    );
     for (name, x) in [("S_rated", 50.0), ("k_dc", 50.0), ("Tdes.H", 3.0)] {
         assert_eq!(retuned.try_set(name, x), Status::Error, "{name}");
     }

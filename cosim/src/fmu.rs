@@ -1,11 +1,13 @@
 //! Loading an `.fmu`: unzip, read its modelDescription.xml, dlopen its binary, resolve the API.
+//! FMUs whose binaries are identical (same `modelIdentifier`, same bytes) share one dlopen
+//! ([`Library`]) and are instantiated from it many times, each with its own unpacked resources.
 
 use model_description::ModelDescription;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::fmt;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::{Arc, Mutex, OnceLock, Weak};
 
 /// `fmi2Status` as returned by an FMU.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
@@ -119,18 +121,119 @@ api! {
     get_string_status: "fmi2GetStringStatus" => fn(Component, c_int, *mut *const c_char) -> c_int;
 }
 
-/// An unpacked, loaded FMU.
+/// A loaded FMU binary (the dlopen handle and its 34 functions), shared by every [`Fmu`] whose
+/// binary has the same `modelIdentifier` and identical bytes; closed when the last one drops.
+pub struct Library {
+    model_identifier: String,
+    api: Api,
+    handle: *mut c_void,
+    /// When offered for sharing: the binary, open (its directory may go before the library
+    /// does), its length, and its bytes once a candidate of the same length was compared.
+    offered: Option<Offered>,
+}
+
+struct Offered {
+    file: std::fs::File,
+    len: u64,
+    bytes: OnceLock<std::io::Result<Vec<u8>>>,
+}
+
+impl Offered {
+    /// The bytes of the offered binary (read on the first comparison).
+    fn bytes(&self) -> Option<&[u8]> {
+        use std::os::unix::fs::FileExt;
+        let read = || {
+            let mut buf = vec![0; self.len as usize];
+            self.file.read_exact_at(&mut buf, 0).map(|()| buf)
+        };
+        self.bytes.get_or_init(read).as_deref().ok()
+    }
+}
+
+// SAFETY: the handle and the function pointers are plain addresses that any thread may use;
+// the library's functions are called per instance (see `Instance`), never through `Library`.
+unsafe impl Send for Library {}
+unsafe impl Sync for Library {}
+
+impl Library {
+    /// The `modelIdentifier` of the FMUs using this binary.
+    pub fn model_identifier(&self) -> &str {
+        &self.model_identifier
+    }
+
+    /// dlopen `path` and resolve the API.
+    fn open(
+        path: &Path,
+        model_identifier: &str,
+        offered: Option<Offered>,
+    ) -> Result<Library, Error> {
+        let c_path = CString::new(path.to_string_lossy().as_bytes())
+            .map_err(|_| Error("bad path".into()))?;
+        // SAFETY: dlopen/dlsym with valid C strings; the handle is closed in Drop.
+        unsafe {
+            let handle = libc::dlopen(c_path.as_ptr(), libc::RTLD_NOW | libc::RTLD_LOCAL);
+            if handle.is_null() {
+                let why = CStr::from_ptr(libc::dlerror())
+                    .to_string_lossy()
+                    .into_owned();
+                return err(format!("cannot load {}: {why}", path.display()));
+            }
+            match Api::resolve(handle) {
+                Ok(api) => Ok(Library {
+                    model_identifier: model_identifier.to_owned(),
+                    api,
+                    handle,
+                    offered,
+                }),
+                Err(e) => {
+                    libc::dlclose(handle);
+                    err(e)
+                }
+            }
+        }
+    }
+}
+
+impl Drop for Library {
+    fn drop(&mut self) {
+        // SAFETY: every Instance holds an Arc<Fmu> holding this library, so none is alive here.
+        unsafe { libc::dlclose(self.handle) };
+    }
+}
+
+/// Whether components with identical binaries share one loaded library.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Sharing {
+    /// One dlopen per distinct binary (same `modelIdentifier`, byte-identical file), however
+    /// many components use it; each instance still gets its own unpacked resources. FMUs that
+    /// declare `canBeInstantiatedOnlyOncePerProcess` always get their own copy.
+    #[default]
+    Shared,
+    /// Every FMU dlopens its own unpacked copy of its binary (how the master loaded before).
+    Separate,
+}
+
+/// The libraries offered for sharing, process-wide; a dead entry is pruned on the next load.
+static LIBRARIES: Mutex<Vec<Weak<Library>>> = Mutex::new(Vec::new());
+
+/// The live libraries offered with this identifier and length (the candidates to compare).
+fn candidates(id: &str, len: u64) -> Vec<Arc<Library>> {
+    let mut libraries = LIBRARIES.lock().unwrap_or_else(|e| e.into_inner());
+    libraries.retain(|w| w.strong_count() > 0);
+    libraries
+        .iter()
+        .filter_map(Weak::upgrade)
+        .filter(|l| l.model_identifier == id && l.offered.as_ref().is_some_and(|o| o.len == len))
+        .collect()
+}
+
+/// An unpacked FMU: its own directory and model description, and its binary (maybe shared).
 pub struct Fmu {
     pub description: ModelDescription,
     /// Where the archive was unpacked (removed on drop).
     pub dir: PathBuf,
-    api: Api,
-    library: *mut c_void,
+    library: Arc<Library>,
 }
-
-// SAFETY: the library handle and function pointers are plain addresses; instances are not shared.
-unsafe impl Send for Fmu {}
-unsafe impl Sync for Fmu {}
 
 /// Why an FMU could not be loaded or used.
 #[derive(Debug)]
@@ -149,67 +252,130 @@ fn err<T>(m: impl Into<String>) -> Result<T, Error> {
 }
 
 fn unique_dir(stem: &str) -> PathBuf {
-    use std::sync::atomic::{AtomicU64, Ordering};
+    use std::sync::atomic::AtomicU64;
     static COUNTER: AtomicU64 = AtomicU64::new(0);
     let n = COUNTER.fetch_add(1, Ordering::Relaxed);
     std::env::temp_dir().join(format!("dvpp-cosim-{}-{n}-{stem}", std::process::id()))
 }
 
 impl Fmu {
-    /// Unpack `path` into a fresh temporary directory and load it.
+    /// Unpack `path` into a fresh temporary directory and load it, sharing its binary with
+    /// FMUs already loaded whose binary is identical ([`Sharing::Shared`]).
     pub fn load(path: &Path) -> Result<Fmu, Error> {
+        Fmu::load_with(path, Sharing::Shared)
+    }
+
+    /// [`Fmu::load`] with a choice of sharing.
+    pub fn load_with(path: &Path, sharing: Sharing) -> Result<Fmu, Error> {
         let file = std::fs::File::open(path)
             .map_err(|e| Error(format!("cannot open {}: {e}", path.display())))?;
         let mut archive = zip::ZipArchive::new(file)
             .map_err(|e| Error(format!("{} is not an FMU archive: {e}", path.display())))?;
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("fmu");
         let dir = unique_dir(stem);
-        archive
-            .extract(&dir)
-            .map_err(|e| Error(format!("cannot unpack {}: {e}", path.display())))?;
-        Fmu::load_dir(dir).map_err(|e| Error(format!("{}: {e}", path.display())))
+        if let Err(e) = archive.extract(&dir) {
+            let _ = std::fs::remove_dir_all(&dir);
+            return err(format!("cannot unpack {}: {e}", path.display()));
+        }
+        Fmu::load_dir_with(dir, sharing).map_err(|e| Error(format!("{}: {e}", path.display())))
     }
 
-    /// Load an FMU already unpacked in `dir` (the directory is removed when the `Fmu` drops).
+    /// Load an FMU already unpacked in `dir` (the directory is removed when the `Fmu` drops, or
+    /// at once when it cannot be loaded).
     pub fn load_dir(dir: PathBuf) -> Result<Fmu, Error> {
+        Fmu::load_dir_with(dir, Sharing::Shared)
+    }
+
+    /// [`Fmu::load_dir`] with a choice of sharing. The directory stays a complete unpacked FMU
+    /// either way (its binary too, even when the library of another FMU serves it).
+    pub fn load_dir_with(dir: PathBuf, sharing: Sharing) -> Result<Fmu, Error> {
+        // The directory is ours from here: removed on every error, as by Drop.
+        let fail = |dir: &Path, e: Error| {
+            let _ = std::fs::remove_dir_all(dir);
+            Err(e)
+        };
         let xml_path = dir.join("modelDescription.xml");
-        let xml = std::fs::read_to_string(&xml_path)
-            .map_err(|e| Error(format!("no modelDescription.xml: {e}")))?;
-        let description = ModelDescription::from_xml(&xml).map_err(|e| Error(e.to_string()))?;
+        let xml = match std::fs::read_to_string(&xml_path) {
+            Ok(x) => x,
+            Err(e) => return fail(&dir, Error(format!("no modelDescription.xml: {e}"))),
+        };
+        let description = match ModelDescription::from_xml(&xml) {
+            Ok(d) => d,
+            Err(e) => return fail(&dir, Error(e.to_string())),
+        };
         let Some(id) = description.model_identifier().map(str::to_owned) else {
-            return err("the FMU does not support Co-Simulation");
+            return fail(&dir, Error("the FMU does not support Co-Simulation".into()));
         };
         let binary = dir
             .join("binaries")
             .join("linux64")
             .join(format!("{id}.so"));
         if !binary.is_file() {
-            return err(format!("missing binary binaries/linux64/{id}.so"));
+            return fail(
+                &dir,
+                Error(format!("missing binary binaries/linux64/{id}.so")),
+            );
         }
-        let c_path = CString::new(binary.to_string_lossy().as_bytes())
-            .map_err(|_| Error("bad path".into()))?;
-        // SAFETY: dlopen/dlsym with valid C strings; the handle is closed in Drop.
-        unsafe {
-            let library = libc::dlopen(c_path.as_ptr(), libc::RTLD_NOW | libc::RTLD_LOCAL);
-            if library.is_null() {
-                let why = CStr::from_ptr(libc::dlerror())
-                    .to_string_lossy()
-                    .into_owned();
-                return err(format!("cannot load {}: {why}", binary.display()));
-            }
-            match Api::resolve(library) {
-                Ok(api) => Ok(Fmu {
-                    description,
-                    dir,
-                    api,
-                    library,
-                }),
-                Err(e) => {
-                    libc::dlclose(library);
-                    err(e)
-                }
-            }
+        let once = description
+            .co_simulation
+            .as_ref()
+            .is_some_and(|cs| cs.can_be_instantiated_only_once_per_process);
+        let library = if sharing == Sharing::Shared && !once {
+            Fmu::shared_library(&binary, &id)
+        } else {
+            Library::open(&binary, &id, None).map(Arc::new)
+        };
+        match library {
+            Ok(library) => Ok(Fmu {
+                description,
+                dir,
+                library,
+            }),
+            Err(e) => fail(&dir, e),
         }
+    }
+
+    /// The library already loaded from identical bytes, or `binary` loaded and offered for
+    /// sharing. The bytes are compared in full (not by a hash, which could collide), and only
+    /// with libraries of the same identifier and length: a binary without such a twin is not
+    /// read at all. Two threads loading twins at the same moment may each load their own
+    /// (unshared, never wrong).
+    fn shared_library(binary: &Path, id: &str) -> Result<Arc<Library>, Error> {
+        let at = |e: std::io::Error| Error(format!("cannot read {}: {e}", binary.display()));
+        let file = std::fs::File::open(binary).map_err(at)?;
+        let len = file.metadata().map_err(at)?.len();
+        let twins = candidates(id, len);
+        let bytes = OnceLock::new();
+        if !twins.is_empty() {
+            let mine = std::fs::read(binary).map_err(at)?;
+            let same = |l: &&Arc<Library>| {
+                l.offered
+                    .as_ref()
+                    .and_then(Offered::bytes)
+                    .is_some_and(|b| b == mine.as_slice())
+            };
+            if let Some(l) = twins.iter().find(same) {
+                return Ok(Arc::clone(l));
+            }
+            let _ = bytes.set(Ok(mine));
+        }
+        let offered = Offered { file, len, bytes };
+        let library = Arc::new(Library::open(binary, id, Some(offered))?);
+        LIBRARIES
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(Arc::downgrade(&library));
+        Ok(library)
+    }
+
+    /// The loaded binary this FMU's instances run in.
+    pub fn library(&self) -> &Arc<Library> {
+        &self.library
+    }
+
+    /// Whether this FMU and `other` run in one loaded library (one dlopen).
+    pub fn shares_library_with(&self, other: &Fmu) -> bool {
+        Arc::ptr_eq(&self.library, &other.library)
     }
 
     /// The `file://` URI of the unpacked `resources/` directory, percent-encoded.
@@ -230,10 +396,10 @@ impl Fmu {
     pub fn version_and_platform(&self) -> (String, String) {
         // SAFETY: both return static C strings.
         unsafe {
-            let v = CStr::from_ptr((self.api.get_version)())
+            let v = CStr::from_ptr((self.library.api.get_version)())
                 .to_string_lossy()
                 .into_owned();
-            let p = CStr::from_ptr((self.api.get_types_platform)())
+            let p = CStr::from_ptr((self.library.api.get_types_platform)())
                 .to_string_lossy()
                 .into_owned();
             (v, p)
@@ -284,7 +450,7 @@ impl Fmu {
         let (c_name, c_guid, c_res) = (cstring(name)?, cstring(guid)?, cstring(resources)?);
         // SAFETY: valid C strings and a callbacks struct that lives as long as the instance.
         let component = unsafe {
-            (self.api.instantiate)(
+            (self.library.api.instantiate)(
                 c_name.as_ptr(),
                 fmu_type,
                 c_guid.as_ptr(),
@@ -317,8 +483,7 @@ impl Fmu {
 
 impl Drop for Fmu {
     fn drop(&mut self) {
-        // SAFETY: every Instance holds an Arc<Fmu>, so none is alive here.
-        unsafe { libc::dlclose(self.library) };
+        // The library closes when its last FMU drops (Library's Drop).
         let _ = std::fs::remove_dir_all(&self.dir);
     }
 }
@@ -335,6 +500,9 @@ pub struct LogRecord {
     pub message: String,
 }
 
+/// Where one instance's log messages go. Thread-safe: each instance has its own sink, the
+/// records sit behind a mutex, the C shim formats into its own heap buffer, and echoed lines go
+/// through the locked stderr; instances stepping in parallel threads log independently.
 struct LogSink {
     instance: String,
     records: Mutex<Vec<LogRecord>>,
@@ -408,7 +576,12 @@ pub struct Instance {
     callbacks: Box<CallbackFunctions>,
 }
 
-// SAFETY: an instance is used from one thread at a time (FMI allows moving it between threads).
+// SAFETY: an FMI 2.0 instance shares no state with the other instances of its binary through
+// the API (each has its own component, callbacks and log sink), and the master calls each
+// instance from one thread at a time (`&mut self` on every call that reaches the FMU), so an
+// instance may move to another thread between calls, which is what parallel stepping does.
+// That instances of one binary may step in parallel threads at all is the FMU's property:
+// ours keep no global mutable state (tested); `--threads` is the user's choice for others.
 unsafe impl Send for Instance {}
 
 /// A saved FMU state; must be freed through the instance that made it.
@@ -461,7 +634,7 @@ impl Instance {
     }
 
     fn api(&self) -> &Api {
-        &self.fmu.api
+        &self.fmu.library.api
     }
 
     pub fn set_debug_logging(&mut self, on: bool, categories: &[&str]) -> Status {
@@ -741,7 +914,7 @@ impl Instance {
 impl Drop for Instance {
     fn drop(&mut self) {
         // SAFETY: the component is valid and freed once; callbacks outlive it.
-        unsafe { (self.fmu.api.free_instance)(self.component) };
+        unsafe { (self.fmu.library.api.free_instance)(self.component) };
         let _ = &self.callbacks;
     }
 }

@@ -1,11 +1,11 @@
 //! Co-simulation master: loads FMI 2.0 Co-Simulation FMUs, reads and writes SSP 1.0 systems and
 //! runs them headless.
 //!
-//! [`fmu`] loads one FMU (unzip, dlopen, the 34 functions, a C-variadic logger); [`ssp`] is the
-//! SSP data model, reader and writer; [`master`] couples the units of a system with an
-//! [`master::Algorithm`] and hands each communication point to [`master::Observer`]s;
-//! [`table`] holds results and the master's clock; [`interrupt`] turns SIGINT/SIGTERM into a
-//! clean stop. The `cosim` binary is the command-line front end.
+//! [`fmu`] loads one FMU (unzip, dlopen once per distinct binary, the 34 functions, a C-variadic
+//! logger); [`ssp`] is the SSP data model, reader and writer; [`master`] couples the units of a
+//! system with an [`master::Algorithm`] (on one thread or several) and hands each communication
+//! point to [`master::Observer`]s; [`table`] holds results and the master's clock; [`interrupt`]
+//! turns SIGINT/SIGTERM into a clean stop. The `cosim` binary is the command-line front end.
 
 pub mod fmu;
 pub mod interrupt;

@@ -4,7 +4,9 @@
 //! How the units advance over a step is an [`Algorithm`] ([`Jacobi`], [`GaussSeidel`]); what
 //! happens to the results is up to the [`Observer`]s ([`CsvWriter`] streams them to disk,
 //! [`Progress`] reports, [`Recorder`] keeps them in memory). The loop polls
-//! [`crate::interrupt::requested`] at each communication point.
+//! [`crate::interrupt::requested`] at each communication point. [`Jacobi`] and [`Iterative`]
+//! step the units on [`System::set_threads`] threads (a small pool, the caller included), with
+//! the results of one thread bit for bit.
 //!
 //! One exchange moves every connection's value from its start connector to its end connector
 //! (with the SSP `LinearTransformation`), in dependency order: a connection leaving a unit with
@@ -16,9 +18,12 @@
 
 mod algorithm;
 mod observer;
+mod pool;
 
 pub use algorithm::{Algorithm, GaussSeidel, Iterative, Jacobi};
 pub use observer::{partial_path, CsvWriter, End, Observer, Progress, Recorder, RunInfo};
+
+pub use crate::fmu::Sharing;
 
 use crate::fmu::{Fmu, Instance, Status};
 use crate::interrupt;
@@ -76,6 +81,37 @@ pub struct Options {
     pub algorithm: Scheme,
 }
 
+/// How a run uses the machine, besides [`Options`] (which other crates build as struct
+/// literals): threads stepping the units, and whether identical binaries share one library.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Execution {
+    /// Threads that step the units of a Jacobi step (and of each iterative attempt), the
+    /// calling thread included; 1 steps them in turn on the calling thread. Results do not
+    /// depend on it (bit for bit): the units of one step are independent.
+    pub threads: usize,
+    pub sharing: Sharing,
+}
+
+impl Default for Execution {
+    /// One thread, identical binaries shared.
+    fn default() -> Self {
+        Execution {
+            threads: 1,
+            sharing: Sharing::Shared,
+        }
+    }
+}
+
+impl Execution {
+    /// `threads` threads (at least 1), identical binaries shared.
+    pub fn threads(threads: usize) -> Execution {
+        Execution {
+            threads: threads.max(1),
+            ..Execution::default()
+        }
+    }
+}
+
 /// What went wrong, naming the unit, element or file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Error(pub String);
@@ -109,6 +145,11 @@ pub struct Outcome {
     /// Wall time of reading the system and loading its FMUs, and of initializing and stepping.
     pub load_time: std::time::Duration,
     pub run_time: std::time::Duration,
+    /// Components, and the libraries they run in (fewer when identical binaries are shared).
+    pub units: usize,
+    pub libraries: usize,
+    /// Threads that stepped the units.
+    pub threads: usize,
 }
 
 /// Load the system at `path` (an `.ssp`, a directory or an `.ssd`) and simulate it to its end,
@@ -137,15 +178,32 @@ pub fn run_with(
     algorithm: &mut dyn Algorithm,
     observers: &mut [&mut dyn Observer],
 ) -> Result<Outcome, Error> {
+    run_on(path, opts, &Execution::default(), algorithm, observers)
+}
+
+/// [`run_with`] on the threads and with the sharing of `exec`.
+pub fn run_on(
+    path: &Path,
+    opts: &Options,
+    exec: &Execution,
+    algorithm: &mut dyn Algorithm,
+    observers: &mut [&mut dyn Observer],
+) -> Result<Outcome, Error> {
     let started = std::time::Instant::now();
     // An unpacked .ssp lives as long as its FMUs are loaded (they are unpacked again each).
     let mut system = if path.extension().is_some_and(|e| e == "fmu") {
-        System::alone(path)?
+        System::alone_with(path, exec.sharing)?
     } else {
-        System::load(&ssp::read(path)?)?
+        System::load_with(&ssp::read(path)?, exec.sharing)?
     };
+    system.set_threads(exec.threads);
     let load_time = started.elapsed();
     let columns = system.columns().len() - 1;
+    let (units, libraries, threads) = (
+        system.units.len(),
+        system.libraries(),
+        system.stepping_threads(),
+    );
     let (end, samples, simulated) = system.simulate_with(opts, algorithm, observers)?;
     Ok(Outcome {
         end,
@@ -155,6 +213,9 @@ pub fn run_with(
         columns,
         load_time,
         run_time: started.elapsed() - load_time,
+        units,
+        libraries,
+        threads,
     })
 }
 
@@ -179,13 +240,22 @@ struct Unit {
     /// Inputs to set before the next read or step: Reals (value references, values), others.
     pending_real: (Vec<u32>, Vec<f64>),
     pending_other: Vec<(u32, BaseType, f64)>,
-    /// The Real entries of `reads` (fixed at load) and a buffer for them.
+    /// The Real, Integer and Boolean entries of `reads` (fixed at load) and buffers for them:
+    /// one call per type reads them all.
     real_vrs: Vec<u32>,
     buf: Vec<f64>,
+    int_vrs: Vec<u32>,
+    int_buf: Vec<i32>,
+    bool_vrs: Vec<u32>,
+    bool_buf: Vec<bool>,
     /// Output index → input indices it depends on, during steps and during initialization.
     step_deps: BTreeMap<u32, BTreeSet<u32>>,
     init_deps: BTreeMap<u32, BTreeSet<u32>>,
     last_message: Option<String>,
+    /// The status of the last `fmi2DoStep` of [`Coupling::step_all`], and of the reads that
+    /// followed it on the same thread (checked in unit order after the round).
+    stepped: Status,
+    fetched: Option<(Status, &'static str)>,
 }
 
 /// One connection, resolved.
@@ -227,6 +297,11 @@ pub struct System {
     row: Vec<f64>,
     /// Warnings so far (loops, FMU warnings).
     pub warnings: Vec<String>,
+    /// Threads asked for (see [`System::set_threads`]), and the pool of a run using more than 1.
+    threads: usize,
+    pool: Option<pool::Pool>,
+    /// Wall time spent in [`Coupling::step_all`] during the last run.
+    step_time: std::time::Duration,
 }
 
 fn variable(md: &ModelDescription, comp: &str, name: &str) -> Result<(Var, Causality), Error> {
@@ -326,21 +401,35 @@ impl Unit {
             pending_other: Vec::new(),
             real_vrs: Vec::new(),
             buf: Vec::new(),
+            int_vrs: Vec::new(),
+            int_buf: Vec::new(),
+            bool_vrs: Vec::new(),
+            bool_buf: Vec::new(),
+            fetched: None,
             step_deps,
             init_deps,
             last_message: None,
+            stepped: Status::Ok,
         })
     }
 
-    /// Fix the Real reads (after every connection has its slot).
+    /// Fix the reads per type (after every connection has its slot).
     fn finish_reads(&mut self) {
-        self.real_vrs = self
-            .reads
-            .iter()
-            .filter(|r| r.ty == BaseType::Real)
-            .map(|r| r.vr)
-            .collect();
+        let vrs = |ty| -> Vec<u32> {
+            self.reads
+                .iter()
+                .filter(|r| r.ty == ty)
+                .map(|r| r.vr)
+                .collect()
+        };
+        (self.real_vrs, self.int_vrs, self.bool_vrs) = (
+            vrs(BaseType::Real),
+            vrs(BaseType::Integer),
+            vrs(BaseType::Boolean),
+        );
         self.buf = vec![0.0; self.real_vrs.len()];
+        self.int_buf = vec![0; self.int_vrs.len()];
+        self.bool_buf = vec![false; self.bool_vrs.len()];
     }
 
     fn slot(&mut self, var: Var) -> usize {
@@ -458,35 +547,54 @@ impl Unit {
     /// Read every recorded variable (after setting the pending inputs).
     fn read(&mut self, warnings: &mut Vec<String>) -> Result<(), Error> {
         self.flush(warnings)?;
-        let s = self.inst.get_real(&self.real_vrs, &mut self.buf);
-        self.check(|| "fmi2GetReal".into(), s, warnings)?;
-        let mut real = 0;
-        for i in 0..self.reads.len() {
-            let (vr, ty) = (self.reads[i].vr, self.reads[i].ty);
-            let s = match ty {
-                BaseType::Real => {
-                    self.values[i] = self.buf[real];
-                    real += 1;
-                    continue;
-                }
-                BaseType::Integer => {
-                    let mut x = [0];
-                    let s = self.inst.get_integer(&[vr], &mut x);
-                    self.values[i] = x[0] as f64;
-                    s
-                }
-                BaseType::Boolean => {
-                    let mut x = [false];
-                    let s = self.inst.get_boolean(&[vr], &mut x);
-                    self.values[i] = x[0] as i32 as f64;
-                    s
-                }
-                BaseType::String => continue,
-            };
-            self.check(|| format!("fmi2Get{ty}"), s, warnings)?;
-        }
+        let (s, what) = self.fetch();
+        self.check(|| what.into(), s, warnings)?;
         self.fresh = true;
         Ok(())
+    }
+
+    /// Get every recorded variable into `values` (one call per type), without setting inputs
+    /// or looking at the log: the worst status and its call (the first above a warning stops).
+    fn fetch(&mut self) -> (Status, &'static str) {
+        let mut worst = (Status::Ok, "fmi2GetReal");
+        let s = self.inst.get_real(&self.real_vrs, &mut self.buf);
+        if s > worst.0 {
+            worst = (s, "fmi2GetReal");
+        }
+        if !self.int_vrs.is_empty() && worst.0 <= Status::Warning {
+            let s = self.inst.get_integer(&self.int_vrs, &mut self.int_buf);
+            if s > worst.0 {
+                worst = (s, "fmi2GetInteger");
+            }
+        }
+        if !self.bool_vrs.is_empty() && worst.0 <= Status::Warning {
+            let s = self.inst.get_boolean(&self.bool_vrs, &mut self.bool_buf);
+            if s > worst.0 {
+                worst = (s, "fmi2GetBoolean");
+            }
+        }
+        if worst.0 > Status::Warning {
+            return worst;
+        }
+        let (mut real, mut int, mut boolean) = (0, 0, 0);
+        for (value, r) in self.values.iter_mut().zip(&self.reads) {
+            match r.ty {
+                BaseType::Real => {
+                    *value = self.buf[real];
+                    real += 1;
+                }
+                BaseType::Integer => {
+                    *value = self.int_buf[int] as f64;
+                    int += 1;
+                }
+                BaseType::Boolean => {
+                    *value = self.bool_buf[boolean] as i32 as f64;
+                    boolean += 1;
+                }
+                BaseType::String => {}
+            }
+        }
+        worst
     }
 }
 
@@ -584,11 +692,18 @@ fn order_units(n: usize, links: &[Link]) -> Vec<usize> {
 
 impl System {
     /// Load every component's FMU, resolve the connections and check the parameter bindings.
+    /// Components whose binaries are identical share one loaded library ([`Sharing::Shared`]),
+    /// each with its own unpacked resources.
     pub fn load(package: &ssp::Package) -> Result<System, Error> {
+        System::load_with(package, Sharing::Shared)
+    }
+
+    /// [`System::load`] with a choice of sharing.
+    pub fn load_with(package: &ssp::Package, sharing: Sharing) -> Result<System, Error> {
         let sys = &package.system;
         let mut fmus = Vec::with_capacity(sys.components.len());
         for c in &sys.components {
-            let fmu = Fmu::load(&package.source_path(c))
+            let fmu = Fmu::load_with(&package.source_path(c), sharing)
                 .map_err(|e| Error(format!("component '{}' ({}): {e}", c.name, c.source)))?;
             fmus.push(Arc::new(fmu));
         }
@@ -598,7 +713,14 @@ impl System {
     /// One FMU on its own: every output recorded, inputs held at their start values, the
     /// experiment from its `DefaultExperiment` (stop 1 s and step 1 ms where it gives none).
     pub fn alone(path: &Path) -> Result<System, Error> {
-        let fmu = Arc::new(Fmu::load(path).map_err(|e| Error(format!("{}: {e}", path.display())))?);
+        System::alone_with(path, Sharing::Shared)
+    }
+
+    /// [`System::alone`] with a choice of sharing.
+    pub fn alone_with(path: &Path, sharing: Sharing) -> Result<System, Error> {
+        let fmu =
+            Fmu::load_with(path, sharing).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+        let fmu = Arc::new(fmu);
         let md = &fmu.description;
         let connectors = md
             .model_variables
@@ -753,7 +875,49 @@ impl System {
             name: sys.name.clone(),
             row: Vec::new(),
             warnings,
+            threads: 1,
+            pool: None,
+            step_time: std::time::Duration::ZERO,
         })
+    }
+
+    /// Step the units of each Jacobi step (and each iterative attempt) on `threads` threads,
+    /// the caller's included (at most one per unit; 1, the default, steps them in turn).
+    /// Gauss-Seidel steps in turn whatever this says.
+    pub fn set_threads(&mut self, threads: usize) {
+        self.threads = threads.max(1);
+    }
+
+    /// The threads a run of this system steps its units on.
+    pub fn stepping_threads(&self) -> usize {
+        self.threads.min(self.units.len()).max(1)
+    }
+
+    /// Wall time the last run spent in [`Coupling::step_all`] (Jacobi steps, iterative
+    /// attempts): stepping every unit and reading its outputs, the part of a run that runs on
+    /// the system's threads; the rest stays on the calling thread.
+    pub fn step_time(&self) -> std::time::Duration {
+        self.step_time
+    }
+
+    /// The loaded FMU of the component `name`.
+    pub fn fmu(&self, name: &str) -> Option<&Arc<Fmu>> {
+        self.units
+            .iter()
+            .find(|u| u.name == name)
+            .map(|u| u.inst.fmu())
+    }
+
+    /// How many distinct libraries (dlopen handles) the components run in.
+    pub fn libraries(&self) -> usize {
+        let mut seen: Vec<&Arc<crate::fmu::Library>> = Vec::new();
+        for u in &self.units {
+            let l = u.inst.fmu().library();
+            if !seen.iter().any(|s| Arc::ptr_eq(s, l)) {
+                seen.push(l);
+            }
+        }
+        seen.len()
     }
 
     /// Move every connection's value in the phase's order; returns how many inputs changed.
@@ -905,6 +1069,15 @@ impl System {
         observers: &mut [&mut dyn Observer],
     ) -> Result<(End, u64, f64), Error> {
         let (start, stop, step) = self.experiment(opts)?;
+        let threads = self.stepping_threads();
+        self.step_time = std::time::Duration::ZERO;
+        self.pool = if threads > 1 {
+            let pool = pool::Pool::new(threads)
+                .map_err(|e| Error(format!("cannot start {threads} stepping threads: {e}")))?;
+            Some(pool)
+        } else {
+            None
+        };
         let columns = self.columns();
         let info = RunInfo {
             system: &self.name,
@@ -933,6 +1106,8 @@ impl System {
             Ok(Some(signal)) => End::Interrupted { signal, at },
             Err(e) => End::Failed { at, error: e.0 },
         };
+        // The workers end with the run.
+        self.pool = None;
         for k in started {
             if let Err(e) = observers[k].finish(&end) {
                 if end == End::Completed {
@@ -1082,6 +1257,22 @@ struct Tally {
     samples: u64,
 }
 
+/// The statuses of a [`Coupling::step_all`] round, in unit order: every step, then every read
+/// (the order in which the steps and then the exchange would meet them).
+fn checked(units: &mut [Unit], warnings: &mut Vec<String>, ts: f64, hs: f64) -> Result<(), Error> {
+    for u in units.iter_mut() {
+        let s = std::mem::replace(&mut u.stepped, Status::Ok);
+        u.check(|| format!("fmi2DoStep({ts}, {hs})"), s, warnings)?;
+    }
+    for u in units.iter_mut() {
+        if let Some((s, what)) = u.fetched.take() {
+            u.check(|| what.into(), s, warnings)?;
+            u.fresh = true;
+        }
+    }
+    Ok(())
+}
+
 /// What an [`Algorithm`] may do with a loaded system during a communication step.
 pub struct Coupling<'a> {
     system: &'a mut System,
@@ -1103,6 +1294,49 @@ impl Coupling<'_> {
             s,
             &mut self.system.warnings,
         )
+    }
+
+    /// `fmi2DoStep` of every unit from `t` by `h` (ticks), all from the inputs they hold, each
+    /// followed by the reading of the unit's outputs, on the system's threads (see
+    /// [`System::set_threads`]). Every unit is stepped; then the statuses are checked in SSD
+    /// order (the first failing unit is reported, the logs handled in that order), so the
+    /// results, messages and warnings do not depend on the number of threads.
+    pub fn step_all(&mut self, t: i64, h: i64) -> Result<(), Error> {
+        let started = std::time::Instant::now();
+        let result = self.step_all_units(t, h);
+        self.system.step_time += started.elapsed();
+        result
+    }
+
+    fn step_all_units(&mut self, t: i64, h: i64) -> Result<(), Error> {
+        let sys = &mut *self.system;
+        let (ts, hs) = (seconds(t), seconds(h));
+        // Each unit's outputs are read right after its step (by the thread that stepped it),
+        // while its state is in that core's cache; the exchange and the sample would read them
+        // next in turn: the same values, as no input changed in between. One thread or many,
+        // every instance sees the same calls in the same order.
+        let step = |u: &mut Unit| {
+            u.stepped = u.inst.do_step(ts, hs);
+            u.fresh = false;
+            let idle = u.pending_real.0.is_empty() && u.pending_other.is_empty();
+            if u.stepped <= Status::Warning && idle {
+                u.fetched = Some(u.fetch());
+            }
+        };
+        match &sys.pool {
+            Some(pool) => pool.for_each(&mut sys.units, step),
+            None => sys.units.iter_mut().for_each(step),
+        }
+        let result = checked(&mut sys.units, &mut sys.warnings, ts, hs);
+        for u in &mut sys.units {
+            u.fetched = None;
+        }
+        result
+    }
+
+    /// Threads [`Coupling::step_all`] steps the units on.
+    pub fn threads(&self) -> usize {
+        self.system.pool.as_ref().map_or(1, pool::Pool::threads)
     }
 
     /// Move every connection's value (dependency order) and set the changed inputs.

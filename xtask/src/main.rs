@@ -67,13 +67,14 @@ tasks:
                   installed (and DVPP_WIN64 is not 0), binaries/win64
   bundle --scenario PATH
                   bundle the scenario file PATH into dist/<its name>/
-  cosim SYSTEM.ssp [--stop T] [--step H] [--algorithm jacobi|gauss-seidel] [--out FILE.csv]
-                  [--plot FILE.svg --signals a.x,b.y]
+  cosim SYSTEM.ssp [--stop T] [--step H] [--algorithm jacobi|gauss-seidel|iterative]
+                  [--threads N|all] [--out FILE.csv] [--plot FILE.svg --signals a.x,b.y]
                   run an SSP system (or one FMU) in our master
   bench    bundle, then measure side by side in one run: case1_load in our master, fmpy.ssp
            and libcosim; the coupling error and cost of jacobi, gauss-seidel and iterative
            against a 0.05 ms run; our master's ns per macro step (a ring of three C FMUs,
-           case1_load); ns per fmi2DoStep of each benchmark FMU
+           case1_load); ns per fmi2DoStep of each benchmark FMU; cost per unit for 3 to
+           768 DER units, shared and separate binaries, 1 and 2 threads
   demo     bundle, then run case study I (case1_load, case1_cloud) in our master: CSVs and
            figures in results/, figures in tests/figures/, metrics table into README.md
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
@@ -387,6 +388,10 @@ fn bench() -> Result {
             sets.join(",")
         ));
     }
+    // Cost per unit against the number of units, shared and separate binaries, 1 and 2
+    // threads (docs/scaling.md).
+    let der = root().join("dist").join("default").join("dvpp_der.fmu");
+    c.arg(format!("scale|{}|3,48,192,768|200000", der.display()));
     run(&mut c)
 }
 

@@ -3,9 +3,18 @@
 //!
 //! An argument `LABEL|FMU|H|NAME=VALUE,...` measures one FMU (the values set before
 //! initialization); `system|LABEL|PATH|STOP` runs the SSP system at PATH to STOP s with each
-//! algorithm and no observer (best of three), and once with its results streamed to a CSV file.
+//! algorithm and no observer (best of three), Jacobi on 2 threads, and once with its results
+//! streamed to a CSV file. `scale|FMU|N,N,...|UNIT_STEPS` builds systems of N components of FMU
+//! each (every output recorded, inputs held at their start values) and runs each N with shared
+//! and separate binaries on 1 and 2 threads, each run a process of its own (for its peak RSS),
+//! UNIT_STEPS / N steps of 1 ms, five runs interleaved: µs per macro step, the linear fit
+//! of cost against N, load time, peak RSS, the 2-thread speed-up and its serial part
+//! (docs/scaling.md).
 
-use dvpp_cosim::master::{self, CsvWriter, End, Observer, Options, Scheme};
+#[path = "bench/scale.rs"]
+mod scale;
+
+use dvpp_cosim::master::{self, CsvWriter, End, Execution, Observer, Options, Scheme};
 use dvpp_cosim::{Fmu, Status};
 use model_description::BaseType;
 use std::process::ExitCode;
@@ -93,11 +102,13 @@ fn initialized(fmu: &Arc<Fmu>, label: &str, sets: &str) -> Result<dvpp_cosim::In
     Ok(i)
 }
 
-/// Nanoseconds per macro step of one run of `path` to `stop` with `scheme` and `observers`.
+/// Nanoseconds per macro step of one run of `path` to `stop` with `scheme`, `threads` and
+/// `observers`.
 fn macro_step(
     path: &std::path::Path,
     stop: f64,
     scheme: Scheme,
+    threads: usize,
     observers: &mut [&mut dyn Observer],
 ) -> Result<(f64, u64), String> {
     let opts = Options {
@@ -105,7 +116,9 @@ fn macro_step(
         algorithm: scheme,
         ..Options::default()
     };
-    let outcome = master::run(path, &opts, observers).map_err(|e| e.to_string())?;
+    let exec = Execution::threads(threads);
+    let outcome = master::run_on(path, &opts, &exec, &mut *scheme.algorithm(), observers)
+        .map_err(|e| e.to_string())?;
     if outcome.end != End::Completed {
         return Err(format!("{}: {:?}", path.display(), outcome.end));
     }
@@ -126,28 +139,60 @@ fn measure_system(spec: &str) -> Result<Vec<(String, f64, u64)>, String> {
         .map_err(|_| format!("{label}: bad stop '{stop}'"))?;
     let path = std::path::Path::new(path);
     let mut rows = Vec::new();
-    for scheme in [Scheme::Jacobi, Scheme::GaussSeidel] {
+    for (scheme, threads) in [
+        (Scheme::Jacobi, 1),
+        (Scheme::GaussSeidel, 1),
+        (Scheme::Jacobi, 2),
+    ] {
         let mut best = (f64::INFINITY, 0);
         for _ in 0..3 {
-            let (ns, steps) = macro_step(path, stop, scheme, &mut [])?;
+            let (ns, steps) = macro_step(path, stop, scheme, threads, &mut [])?;
             if ns < best.0 {
                 best = (ns, steps);
             }
         }
-        rows.push((format!("{label} ({scheme:?})"), best.0, best.1));
+        let on = if threads > 1 {
+            format!(", {threads} threads")
+        } else {
+            String::new()
+        };
+        rows.push((format!("{label} ({scheme:?}{on})"), best.0, best.1));
     }
     let csv = std::env::temp_dir().join(format!("dvpp-bench-{}.csv", std::process::id()));
     let mut writer = CsvWriter::new(&csv);
-    let (ns, steps) = macro_step(path, stop, Scheme::Jacobi, &mut [&mut writer])?;
+    let (ns, steps) = macro_step(path, stop, Scheme::Jacobi, 1, &mut [&mut writer])?;
     let _ = std::fs::remove_file(&csv);
     rows.push((format!("{label} (Jacobi, streamed CSV)"), ns, steps));
     Ok(rows)
 }
 
 fn main() -> ExitCode {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    // A child of `scale`: one run, one line of results on stdout.
+    if let [first, spec] = args.as_slice() {
+        if first == scale::CHILD {
+            return match scale::child(spec) {
+                Ok(line) => {
+                    println!("{line}");
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("bench: {e}");
+                    ExitCode::FAILURE
+                }
+            };
+        }
+    }
     println!("{:<48} {:>14} {:>10}", "benchmark", "ns/step", "steps");
     let mut failed = false;
-    for spec in std::env::args().skip(1) {
+    for spec in args {
+        if spec.starts_with("scale|") {
+            if let Err(e) = scale::measure(&spec) {
+                eprintln!("bench: {e}");
+                failed = true;
+            }
+            continue;
+        }
         if spec.starts_with("system|") {
             match measure_system(&spec) {
                 Ok(rows) => {

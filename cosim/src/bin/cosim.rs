@@ -1,7 +1,7 @@
 //! `cosim`: run an SSP system (or one FMU on its own) headless, streaming the results to CSV.
 
 use dvpp_cosim::master::{
-    self, partial_path, CsvWriter, End, Observer, Options, Progress, Recorder, Scheme,
+    self, partial_path, CsvWriter, End, Execution, Observer, Options, Progress, Recorder, Scheme,
 };
 use dvpp_cosim::{interrupt, Table};
 use dvpp_report::plot::{Figure, Panel, Style};
@@ -10,8 +10,8 @@ use std::process::ExitCode;
 
 const USAGE: &str = "usage: cosim SYSTEM.ssp|SYSTEM_DIR|SYSTEM.ssd|FILE.fmu [--stop T] [--step H]
              [--algorithm jacobi|gauss-seidel|iterative [--tolerance RTOL]
-             [--relaxation W] [--max-iterations N]] [--out FILE.csv | --no-csv]
-             [--plot FILE.svg] [--signals component.variable,...]
+             [--relaxation W] [--max-iterations N]] [--threads N|all]
+             [--out FILE.csv | --no-csv] [--plot FILE.svg] [--signals component.variable,...]
 
 Simulates an SSP system (an .ssp archive, a directory with SystemStructure.ssd, or an .ssd file)
 from its DefaultExperiment and OSP step size, or one FMU on its own (inputs held at their start
@@ -21,11 +21,15 @@ precision). Jacobi (default) steps every unit from the same inputs; gauss-seidel
 other in dependency order; iterative repeats each step from the saved FMU states until the
 exchanged values settle (--tolerance: relative, default 1e-2, absolute 1e-3 of it; each new
 attempt moves --relaxation (default 1) of the way to the values obtained; at most
---max-iterations, default 30), which removes the exchange delay at the cost of the attempts. Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run that
-fails or is stopped by SIGINT/SIGTERM (at the next communication point) leaves every complete
-row in FILE.csv.partial and exits non-zero (1 on an error, 128 + the signal's number when
-interrupted). --no-csv records nothing (benchmarks). --plot draws the --signals (default: the
-first six columns) against time as an SVG figure; it keeps the results in memory.";
+--max-iterations, default 30), which removes the exchange delay at the cost of the attempts.
+--threads N steps the units of each Jacobi step (and iterative attempt) on N threads (`all`:
+one per core; default 1) with results identical bit for bit; it pays where cores are idle
+(docs/scaling.md). Components with identical binaries share one loaded library, each with its
+own resources. Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run
+that fails or is stopped by SIGINT/SIGTERM (at the next communication point) leaves every
+complete row in FILE.csv.partial and exits non-zero (1 on an error, 128 + the signal's number
+when interrupted). --no-csv records nothing (benchmarks). --plot draws the --signals (default:
+the first six columns) against time as an SVG figure; it keeps the results in memory.";
 
 #[derive(Default)]
 struct Args {
@@ -34,6 +38,7 @@ struct Args {
     out: Option<PathBuf>,
     no_csv: bool,
     iterative: master::Iterative,
+    exec: Execution,
     plot: Option<PathBuf>,
     signals: Vec<String>,
 }
@@ -68,6 +73,16 @@ fn parse() -> Result<Args, String> {
                 args.iterative.atol = 1e-3 * args.iterative.rtol;
             }
             "--relaxation" => args.iterative.relaxation = number("--relaxation", it.next())?,
+            "--threads" => {
+                let v = it.next().ok_or("--threads needs a number or 'all'")?;
+                args.exec.threads = if v == "all" {
+                    std::thread::available_parallelism().map_or(1, |n| n.get())
+                } else {
+                    v.parse().ok().filter(|n| *n > 0).ok_or(format!(
+                        "--threads {v}: not a positive whole number or 'all'"
+                    ))?
+                };
+            }
             "--max-iterations" => {
                 let v = it.next().ok_or("--max-iterations needs a value")?;
                 args.iterative.max_iterations = v
@@ -157,7 +172,13 @@ fn main() -> ExitCode {
     } else {
         &mut *builtin
     };
-    let outcome = match master::run_with(&args.system, &args.opts, algorithm, &mut observers) {
+    let outcome = match master::run_on(
+        &args.system,
+        &args.opts,
+        &args.exec,
+        algorithm,
+        &mut observers,
+    ) {
         Ok(o) => o,
         Err(e) => {
             eprintln!("cosim: {e}");

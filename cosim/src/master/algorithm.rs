@@ -20,7 +20,8 @@ pub trait Algorithm {
     }
 }
 
-/// All units step from the same exchanged inputs (parallel in principle), then one exchange.
+/// All units step from the same exchanged inputs (on the system's threads, see
+/// [`super::System::set_threads`]), then one exchange.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct Jacobi;
 
@@ -30,9 +31,7 @@ impl Algorithm for Jacobi {
     }
 
     fn step(&mut self, system: &mut Coupling<'_>, t: i64, h: i64) -> Result<(), Error> {
-        for unit in 0..system.units() {
-            system.do_step(unit, t, h)?;
-        }
+        system.step_all(t, h)?;
         system.exchange()
     }
 }
@@ -156,9 +155,7 @@ impl Algorithm for Iterative {
         self.steps += 1;
         let mut attempts = 0;
         loop {
-            for unit in 0..system.units() {
-                system.do_step(unit, t, h)?;
-            }
+            system.step_all(t, h)?;
             system.exchange()?;
             attempts += 1;
             system.connection_values(&mut self.got);

@@ -2,7 +2,8 @@
 //!
 //! A case holds everything needed to build a [`crate::Grid`]: the network (buses, π-model lines,
 //! transformers, shunts, loads), the synchronous machines with their governors and exciters, the
-//! power-flow set points, the DER slots the DVPP controllers plug into, the PCC definition and the
+//! power-flow set points, the DER slots the DVPP controllers plug into, the PCC definition, the
+//! points of coupling of a DVPP area, the lines whose R/X ratio a run may change and the
 //! scheduled events. Validation happens in [`Case::validate`], which [`Case::from_toml_str`] calls.
 
 use serde::{Deserialize, Serialize};
@@ -125,6 +126,10 @@ pub struct Line {
     pub b: f64,
     #[serde(default = "yes")]
     pub in_service: bool,
+    /// R/X ratio imposed on this line, keeping |r + jx| of the data above (None: r, x as given;
+    /// for a line of the `[mv]` group, None takes the group's `rx`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rx: Option<f64>,
 }
 
 /// Two-winding transformer, series r, x in pu on the system base; `tap` is the off-nominal ratio
@@ -245,6 +250,46 @@ pub struct Pcc {
     pub f_filter_t: f64,
 }
 
+/// A point of coupling (POC) of an area (e.g. an MV distribution grid hosting DVPP units) with the
+/// rest of the grid: the transmission bus where it is measured and the branches through which
+/// the area's power arrives there. `poc[k].p`, `q` are the powers those branches deliver into
+/// `bus` (positive: the area feeds the grid, as `pcc.p`); `v`, `f` are measured at `bus`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Poc {
+    #[serde(default)]
+    pub name: Option<String>,
+    pub bus: u32,
+    /// Names of the branches (lines or transformers) joining `bus` to the area; each must touch
+    /// `bus`.
+    pub branches: Vec<String>,
+    /// Time constant of the first-order filter on the angle derivative, s (as `[pcc]`).
+    #[serde(default = "default_tf")]
+    pub f_filter_t: f64,
+}
+
+/// The lines whose R/X ratio is a run parameter (`mv.rx`, `mv.line[k].rx` in the FMU), e.g. the
+/// lines of an MV distribution grid. Every line listed gets R/X = `rx` with its |r + jx| kept,
+/// unless the line sets its own `rx`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MvLines {
+    #[serde(default = "one")]
+    pub rx: f64,
+    /// Line names (`name`, or the default `L<from>-<to>`), in the order of `mv.line[k]`.
+    pub lines: Vec<String>,
+}
+
+/// Largest admissible R/X ratio of a line.
+pub const RX_MAX: f64 = 20.0;
+
+/// Series r, x with |r + jx| kept and r/x = `rx`.
+pub fn with_rx(r: f64, x: f64, rx: f64) -> (f64, f64) {
+    let z = r.hypot(x);
+    let x_new = z / rx.hypot(1.0);
+    (rx * x_new, x_new)
+}
+
 /// Scheduled event.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -302,6 +347,12 @@ pub struct Case {
     pub ders: Vec<DerSlot>,
     #[serde(default)]
     pub pcc: Option<Pcc>,
+    /// Points of coupling of a DVPP area (outputs `poc[k].p/q/v/f`).
+    #[serde(rename = "poc", default, skip_serializing_if = "Vec::is_empty")]
+    pub pocs: Vec<Poc>,
+    /// Lines whose R/X ratio is a parameter of the run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mv: Option<MvLines>,
     #[serde(rename = "event", default)]
     pub events: Vec<Event>,
 }
@@ -358,7 +409,7 @@ impl Case {
         Ok(case)
     }
 
-    /// Built-in case by name: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid`.
+    /// Built-in case by name: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid`, `ieee9_mv`.
     pub fn builtin(name: &str) -> Option<Case> {
         let text = builtin_text(name)?;
         Some(Case::from_toml_str(text).expect("built-in case is valid"))
@@ -366,7 +417,7 @@ impl Case {
 
     /// Names of the built-in cases.
     pub fn builtin_names() -> &'static [&'static str] {
-        &["ieee9", "ieee9_dvpp", "ieee9_hybrid"]
+        &["ieee9", "ieee9_dvpp", "ieee9_hybrid", "ieee9_mv"]
     }
 
     /// Map from bus id to 0-based index.
@@ -378,20 +429,51 @@ impl Case {
             .collect()
     }
 
+    /// Name of a line: its `name`, or `L<from>-<to>`.
+    pub fn line_name(&self, l: &Line) -> String {
+        l.name
+            .clone()
+            .unwrap_or_else(|| format!("L{}-{}", l.from, l.to))
+    }
+
+    /// The R/X ratio imposed on line `l` named `name`: its own `rx`, else the `[mv]` group's
+    /// when it is listed there, else None (r, x as given).
+    fn line_rx(&self, l: &Line, name: &str) -> Option<f64> {
+        l.rx.or_else(|| {
+            self.mv
+                .as_ref()
+                .filter(|mv| mv.lines.iter().any(|n| n == name))
+                .map(|mv| mv.rx)
+        })
+    }
+
+    /// Indices (into `lines`) of the `[mv]` group's lines, in the group's order.
+    pub fn mv_line_indices(&self) -> Vec<usize> {
+        let Some(mv) = &self.mv else {
+            return Vec::new();
+        };
+        mv.lines
+            .iter()
+            .filter_map(|n| self.lines.iter().position(|l| &self.line_name(l) == n))
+            .collect()
+    }
+
     /// All branches (lines, then transformers) with bus indices and default names.
     pub fn branches(&self) -> Vec<BranchData> {
         let idx = self.bus_index();
         let mut out = Vec::new();
         for l in &self.lines {
+            let name = self.line_name(l);
+            let (r, x) = match self.line_rx(l, &name) {
+                Some(rx) => with_rx(l.r, l.x, rx),
+                None => (l.r, l.x),
+            };
             out.push(BranchData {
-                name: l
-                    .name
-                    .clone()
-                    .unwrap_or_else(|| format!("L{}-{}", l.from, l.to)),
+                name,
                 from: idx[&l.from],
                 to: idx[&l.to],
-                r: l.r,
-                x: l.x,
+                r,
+                x,
                 b: l.b,
                 tap: 1.0,
                 in_service: l.in_service,
@@ -480,6 +562,9 @@ impl Case {
             let el = format!("line {} ({}-{})", i + 1, l.from, l.to);
             branch(&el, l.from, l.to, l.r, l.x)?;
             nonneg(&el, "b", l.b)?;
+            if let Some(rx) = l.rx {
+                check_range(&el, "rx", rx, (0.0..=RX_MAX).contains(&rx), "0 <= rx <= 20")?;
+            }
         }
         for (i, t) in self.transformers.iter().enumerate() {
             let el = format!("transformer {} ({}-{})", i + 1, t.from, t.to);
@@ -596,6 +681,54 @@ impl Case {
                 }
             }
         }
+        let brs = self.branches();
+        for (k, p) in self.pocs.iter().enumerate() {
+            let el = format!("poc {}", k + 1);
+            bus_ok(el.clone(), p.bus)?;
+            pos(&el, "f_filter_t", p.f_filter_t)?;
+            if p.branches.is_empty() {
+                return Err(CaseError::Inconsistent(format!("{el} lists no branch")));
+            }
+            let at = self.bus_index()[&p.bus];
+            for name in &p.branches {
+                match brs.iter().find(|b| &b.name == name) {
+                    None => {
+                        return Err(CaseError::UnknownReference {
+                            element: el,
+                            name: name.clone(),
+                        })
+                    }
+                    Some(b) if b.from != at && b.to != at => {
+                        return Err(CaseError::Inconsistent(format!(
+                            "{el}: branch {name} does not touch bus {}",
+                            p.bus
+                        )))
+                    }
+                    _ => {}
+                }
+            }
+        }
+        if let Some(mv) = &self.mv {
+            check_range(
+                "mv",
+                "rx",
+                mv.rx,
+                (0.0..=RX_MAX).contains(&mv.rx),
+                "0 <= rx <= 20",
+            )?;
+            let mut seen = BTreeSet::new();
+            for name in &mv.lines {
+                if !self.lines.iter().any(|l| &self.line_name(l) == name) {
+                    return Err(CaseError::UnknownReference {
+                        element: "mv".into(),
+                        name: name.clone(),
+                    });
+                }
+                if !seen.insert(name) {
+                    return Err(CaseError::DuplicateName(format!("mv line {name}")));
+                }
+            }
+        }
         for (i, e) in self.events.iter().enumerate() {
             let el = format!("event {}", i + 1);
             nonneg(&el, "time", e.time())?;
@@ -661,6 +794,7 @@ pub fn builtin_text(name: &str) -> Option<&'static str> {
         "ieee9" => Some(include_str!("../cases/ieee9.toml")),
         "ieee9_dvpp" => Some(include_str!("../cases/ieee9_dvpp.toml")),
         "ieee9_hybrid" => Some(include_str!("../cases/ieee9_hybrid.toml")),
+        "ieee9_mv" => Some(include_str!("../cases/ieee9_mv.toml")),
         _ => None,
     }
 }

@@ -237,6 +237,16 @@ pub struct PccOutput {
     pub angle: f64,
 }
 
+/// A point of coupling as the simulation uses it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub(crate) struct PocRt {
+    /// Measurement bus (index).
+    pub bus: usize,
+    /// Branch indices whose flows into `bus` are summed.
+    pub branches: Vec<usize>,
+    pub tf: f64,
+}
+
 /// Per-machine outputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MachineOutput {
@@ -269,6 +279,9 @@ pub struct Outputs {
     pub t: f64,
     pub der: Vec<DerOutput>,
     pub pcc: PccOutput,
+    /// Per point of coupling (case `[[poc]]`): the power its branches deliver into its bus
+    /// (positive: the area feeds the grid), its bus voltage, frequency and angle.
+    pub poc: Vec<PccOutput>,
     /// Inertia-weighted mean speed of the in-service machines, pu (PCC frequency if none).
     pub coi_f: f64,
     pub sg: Vec<MachineOutput>,
@@ -351,12 +364,18 @@ pub struct Grid {
     /// (branch index, measured at bus index).
     pub(crate) pcc_branches: Vec<(usize, usize)>,
     pub(crate) pcc_tf: f64,
-    /// State vector: per machine its states (see `MachineRt::at`), then the PCC angle filter.
+    pub(crate) pocs: Vec<PocRt>,
+    /// Index in `x` of the PCC angle filter state; the POC filters follow it.
+    pub(crate) pcc_state: usize,
+    /// State vector: per machine its states (see `MachineRt::at`), then the PCC angle filter,
+    /// then one angle filter per POC.
     pub(crate) x: Vec<f64>,
     pub(crate) t: f64,
     pub(crate) v: Vec<C64>,
     pub(crate) der_angle: Vec<f64>,
     pub(crate) pcc_angle: f64,
+    /// Unwrapped bus angle of each POC, rad.
+    pub(crate) poc_angle: Vec<f64>,
     pub(crate) events: Vec<EventState>,
     pub(crate) pf: PowerFlow,
     /// Internal integration step in use, and the largest the case's time constants allow.
@@ -397,7 +416,7 @@ impl Grid {
                 LoadModel::ConstantPower => load_s[i] += s,
             }
         }
-        // machines, then the PCC filter state
+        // machines, then the PCC and POC filter states
         let mut machines = Vec::new();
         let mut x = Vec::new();
         for (j, m) in case.machines.iter().enumerate() {
@@ -405,7 +424,26 @@ impl Grid {
             let mr = MachineRt::init(m, j, bus, sb, v[bus], pf.machine_pq[j], &mut x)?;
             machines.push(mr);
         }
+        let pcc_state = x.len();
         x.push(0.0);
+        let pocs: Vec<PocRt> = case
+            .pocs
+            .iter()
+            .map(|p| {
+                let bus = idx[&p.bus];
+                x.push(v[bus].arg());
+                PocRt {
+                    bus,
+                    branches: p
+                        .branches
+                        .iter()
+                        .map(|name| branches.iter().position(|b| &b.name == name).unwrap())
+                        .collect(),
+                    tf: p.f_filter_t,
+                }
+            })
+            .collect();
+        let poc_angle = pocs.iter().map(|p| v[p.bus].arg()).collect();
         // DER slots
         let mut ders = Vec::new();
         for (k, d) in case.ders.iter().enumerate() {
@@ -468,8 +506,7 @@ impl Grid {
                 ((b), (0..case.ders.len()).collect(), Vec::new(), 0.02)
             }
         };
-        let nx = x.len();
-        x[nx - 1] = v[pcc_bus].arg();
+        x[pcc_state] = v[pcc_bus].arg();
         let der_angle = ders.iter().map(|d| v[d.bus].arg()).collect();
         let pcc_angle = v[pcc_bus].arg();
         let events = case
@@ -488,6 +525,12 @@ impl Grid {
             .flat_map(|(j, m)| m.time_constants(j, wb))
             .collect();
         tcs.push(TimeConstant::new("pcc.f_filter_t".into(), pcc_tf));
+        for (k, p) in pocs.iter().enumerate() {
+            tcs.push(TimeConstant::new(
+                format!("poc[{}].f_filter_t", k + 1),
+                p.tf,
+            ));
+        }
         let (h_limit, step_note) = choose_internal_step(&tcs)?;
         let mut g = Grid {
             case: case.clone(),
@@ -503,11 +546,14 @@ impl Grid {
             pcc_slots,
             pcc_branches,
             pcc_tf,
+            pocs,
+            pcc_state,
             x,
             t: 0.0,
             v,
             der_angle,
             pcc_angle,
+            poc_angle,
             events,
             pf,
             h_max: h_limit,
@@ -696,7 +742,6 @@ impl Grid {
 
     /// All outputs at the current time (from the last network solution).
     pub fn outputs(&self) -> Outputs {
-        let nx = self.x.len();
         let mut out = Outputs {
             t: self.t,
             ..Default::default()
@@ -772,7 +817,7 @@ impl Grid {
                 sp += if at == br.from { sf } else { st };
             }
         }
-        let f = 1.0 + (self.pcc_angle - self.x[nx - 1]) / (self.pcc_tf * self.wb);
+        let f = 1.0 + (self.pcc_angle - self.x[self.pcc_state]) / (self.pcc_tf * self.wb);
         out.pcc = PccOutput {
             p: sp.re,
             q: sp.im,
@@ -780,6 +825,25 @@ impl Grid {
             f,
             angle: self.pcc_angle,
         };
+        for (k, p) in self.pocs.iter().enumerate() {
+            let mut s = C64::new(0.0, 0.0);
+            for &b in &p.branches {
+                let br = &self.branches[b];
+                if br.in_service {
+                    let (sf, st) = self.branch_flows(br);
+                    // the power the branch delivers into the POC bus
+                    s -= if p.bus == br.from { sf } else { st };
+                }
+            }
+            let th = self.poc_angle[k];
+            out.poc.push(PccOutput {
+                p: s.re,
+                q: s.im,
+                v: self.v[p.bus].norm(),
+                f: 1.0 + (th - self.x[self.pcc_state + 1 + k]) / (p.tf * self.wb),
+                angle: th,
+            });
+        }
         out.coi_f = if hs > 0.0 { hw / hs } else { f };
         out.gen_p = gen;
         out.load_p = load;

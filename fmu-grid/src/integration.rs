@@ -118,9 +118,13 @@ impl Grid {
         }
         // The PCC frequency filter works on the unwrapped angle: its lag behind the angle is
         // Δω T_f, beyond π at deviations above π/(ω_b T_f) (0.1 pu for T_f = 0.1 s).
-        let nx = x.len();
+        let i = self.pcc_state;
         let th = self.pcc_angle + wrap(v[self.pcc_bus].arg() - self.pcc_angle);
-        dx[nx - 1] = (th - x[nx - 1]) / self.pcc_tf;
+        dx[i] = (th - x[i]) / self.pcc_tf;
+        for (k, p) in self.pocs.iter().enumerate() {
+            let th = self.poc_angle[k] + wrap(v[p.bus].arg() - self.poc_angle[k]);
+            dx[i + 1 + k] = (th - x[i + 1 + k]) / p.tf;
+        }
     }
 
     fn clamp_states(&mut self) {

@@ -13,7 +13,10 @@
 //! the case: per DER slot k its inputs (`der[k].theta`, `der[k].E` grid-forming;
 //! `der[k].p_ref`, `der[k].q_ref` grid-following; starts = the power-flow set points, so a run
 //! with untouched inputs is a flat start) and outputs, per machine j its speed and powers, per
-//! event i its override parameters, and the PCC, COI and power-balance outputs.
+//! event i its override parameters, and the PCC, COI and power-balance outputs; per point of
+//! coupling k (case `[[poc]]`) the outputs `poc[k].p/q/v/f`, and for a case with an `[mv]` line
+//! group the R/X parameters `mv.rx`, `mv.line[k].rx` (the power flow is re-solved with them at
+//! initialization).
 //!
 //! In initialization mode the outputs are the power-flow operating point (they depend on no
 //! input, so a master can initialize the DER FMUs from them); in step mode they are computed
@@ -53,7 +56,7 @@ pub const DEFAULT_CASE: &str = "ieee9_dvpp";
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GridConfig {
-    /// A built-in case: `ieee9`, `ieee9_dvpp` or `ieee9_hybrid`.
+    /// A built-in case: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid` or `ieee9_mv`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub case: Option<String>,
     /// A case file (TOML) in the FMU's `resources/` directory, relative to it.
@@ -62,7 +65,8 @@ pub struct GridConfig {
     /// Events appended to the case's own (e.g. a load step on a case that has none).
     #[serde(default, rename = "event", skip_serializing_if = "Vec::is_empty")]
     pub events: Vec<Event>,
-    /// Overrides the case's PCC frequency-measurement time constant `[pcc] f_filter_t`, s.
+    /// Overrides the case's PCC frequency-measurement time constant `[pcc] f_filter_t`, s (and
+    /// the `f_filter_t` of every `[[poc]]`, so that all frequencies are measured alike).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pcc_f_filter_t: Option<f64>,
 }
@@ -116,6 +120,9 @@ impl GridConfig {
                 .as_mut()
                 .ok_or("[model] pcc_f_filter_t: the case has no [pcc] table")?;
             pcc.f_filter_t = t;
+            for poc in &mut case.pocs {
+                poc.f_filter_t = t;
+            }
             case.validate()
                 .map_err(|e| format!("[model] pcc_f_filter_t = {t}: {e}"))?;
         }
@@ -151,6 +158,15 @@ struct EventVars {
     size: Option<(Real, Real)>,
 }
 
+/// Handles of the R/X parameters of the case's `[mv]` lines, and of what they last applied.
+#[derive(Clone, Serialize, Deserialize)]
+struct RxVars {
+    /// `mv.rx`.
+    mv: Real,
+    /// `mv.line[k].rx`, in the order of the `[mv]` group.
+    lines: Vec<Real>,
+}
+
 /// Handles of one machine's outputs.
 #[derive(Clone, Serialize, Deserialize)]
 struct MachineVars {
@@ -171,6 +187,14 @@ pub struct GridFmu {
     events: Vec<EventVars>,
     machines: Vec<MachineVars>,
     pcc: [Real; 4],
+    /// Per point of coupling: p, q, v, f.
+    pocs: Vec<[Real; 4]>,
+    /// The R/X parameters (cases with an `[mv]` table).
+    rx: Option<RxVars>,
+    /// Per slot, the input values (θ, E or p_ref, q_ref) the FMU itself put in the store (the
+    /// start values, or the set points of a power flow re-solved for new R/X parameters): an
+    /// input still holding them has not been set by the master.
+    input_auto: Vec<(f64, f64)>,
     coi_f: Real,
     /// Generation, load, losses and generation − load − losses.
     balance: [Real; 4],
@@ -213,12 +237,68 @@ impl GridFmu {
         s[q] = o.pcc.q;
         s[v] = o.pcc.v;
         s[f] = o.pcc.f;
+        for (vars, p) in self.pocs.iter().zip(&o.poc) {
+            let [vp, vq, vv, vf] = *vars;
+            s[vp] = p.p;
+            s[vq] = p.q;
+            s[vv] = p.v;
+            s[vf] = p.f;
+        }
         s[self.coi_f] = o.coi_f;
         let [gen, load, loss, mismatch] = self.balance;
         s[gen] = o.gen_p;
         s[load] = o.load_p;
         s[loss] = o.loss_p;
         s[mismatch] = o.balance_p;
+    }
+}
+
+impl GridFmu {
+    /// Apply the R/X parameters: when they differ from the grid's case, rebuild the grid (power
+    /// flow and initialization) from the case with the new ratios, and move the inputs the
+    /// master has not set to the new set points.
+    fn apply_rx(&mut self, s: &mut Store) -> Result<(), ModelError> {
+        let Some(rx) = &self.rx else {
+            return Ok(());
+        };
+        let mut case = self.grid.case().clone();
+        let lines = case.mv_line_indices();
+        if let Some(mv) = case.mv.as_mut() {
+            mv.rx = s[rx.mv];
+        }
+        for (&i, &vr) in lines.iter().zip(&rx.lines) {
+            let v = s[vr];
+            case.lines[i].rx = (v > 0.0).then_some(v);
+        }
+        if case == *self.grid.case() {
+            return Ok(());
+        }
+        let grid = Grid::new(&case).map_err(|e| {
+            ModelError(format!(
+                "R/X parameters ({} = {}): {e}",
+                ports::MV_RX,
+                s[rx.mv]
+            ))
+        })?;
+        self.grid = grid;
+        for ((vars, auto), init) in self
+            .slots
+            .iter()
+            .zip(&mut self.input_auto)
+            .zip(self.grid.der_initial())
+        {
+            if (s[vars.a], s[vars.b]) != *auto {
+                continue;
+            }
+            let new = match init {
+                DerSetpoint::GridForming { theta0, e0 } => (theta0, e0),
+                DerSetpoint::GridFollowing { p0, q0 } => (p0, q0),
+            };
+            s[vars.a] = new.0;
+            s[vars.b] = new.1;
+            *auto = new;
+        }
+        Ok(())
     }
 }
 
@@ -304,7 +384,12 @@ impl Model for GridFmu {
         }
 
         let mut slots = Vec::new();
+        let mut input_auto = Vec::new();
         for (k, init) in grid.der_initial().iter().enumerate() {
+            input_auto.push(match *init {
+                DerSetpoint::GridForming { theta0, e0 } => (theta0, e0),
+                DerSetpoint::GridFollowing { p0, q0 } => (p0, q0),
+            });
             let bus = case.ders[k].bus;
             let (grid_forming, a, b) = match *init {
                 DerSetpoint::GridForming { theta0, e0 } => (
@@ -503,6 +588,83 @@ impl Model for GridFmu {
                  network solver tolerance)",
             )),
         ];
+        let pocs = case
+            .pocs
+            .iter()
+            .enumerate()
+            .map(|(k, p)| {
+                let label = p
+                    .name
+                    .clone()
+                    .unwrap_or_else(|| format!("point of coupling {}", k + 1));
+                let bus = p.bus;
+                let through = p.branches.join(", ");
+                [
+                    v.real(Spec::output(
+                        &ports::poc_p(k + 1),
+                        "pu",
+                        &format!(
+                            "{label}: active power the area delivers into bus {bus} through {through} (positive: into the grid, as pcc.p), on S_base"
+                        ),
+                    )),
+                    v.real(Spec::output(
+                        &ports::poc_q(k + 1),
+                        "pu",
+                        &format!(
+                            "{label}: reactive power the area delivers into bus {bus} through {through}, on S_base"
+                        ),
+                    )),
+                    v.real(Spec::output(
+                        &ports::poc_v(k + 1),
+                        "pu",
+                        &format!("{label}: voltage magnitude at bus {bus}"),
+                    )),
+                    v.real(Spec::output(
+                        &ports::poc_f(k + 1),
+                        "pu",
+                        &format!(
+                            "{label}: frequency at bus {bus}, pu of f_nom, measured as pcc.f (T_f = {} s)",
+                            p.f_filter_t
+                        ),
+                    )),
+                ]
+            })
+            .collect();
+        let rx = case.mv.as_ref().map(|mv| {
+            let rx_max = case::RX_MAX;
+            let mv_rx = v.real(
+                Spec::parameter(
+                    ports::MV_RX,
+                    mv.rx,
+                    "",
+                    "R/X ratio of every line of the case's [mv] group that has no ratio of its own (mv.line[k].rx = 0), each line keeping |r + jx|; the power flow is re-solved at initialization",
+                )
+                .range(0.0, rx_max),
+            );
+            let lines = case
+                .mv_line_indices()
+                .into_iter()
+                .enumerate()
+                .map(|(k, i)| {
+                    let l = &case.lines[i];
+                    v.real(
+                        Spec::parameter(
+                            &ports::mv_line_rx(k + 1),
+                            l.rx.unwrap_or(0.0),
+                            "",
+                            &format!(
+                                "R/X ratio of line {} ({}-{}), keeping its |r + jx|; 0: mv.rx",
+                                case.line_name(l),
+                                l.from,
+                                l.to
+                            ),
+                        )
+                        .range(0.0, rx_max),
+                    )
+                })
+                .collect();
+            RxVars { mv: mv_rx, lines }
+        });
         Ok(GridFmu {
             grid,
             started: false,
@@ -510,6 +672,9 @@ impl Model for GridFmu {
             events,
             machines,
             pcc,
+            pocs,
+            rx,
+            input_auto,
             coi_f,
             balance,
             step_logged: false,
@@ -523,6 +688,7 @@ impl Model for GridFmu {
             }
             self.step_logged = true;
         }
+        self.apply_rx(s)?;
         let sb = self.grid.case().base_mva;
         for (i, e) in self.events.iter().enumerate() {
             let ov = EventOverride {

@@ -389,6 +389,10 @@ impl Grid {
         }
         let a = self.v[self.pcc_bus].arg();
         self.pcc_angle += wrap(a - self.pcc_angle);
+        for (k, p) in self.pocs.iter().enumerate() {
+            let a = self.v[p.bus].arg();
+            self.poc_angle[k] += wrap(a - self.poc_angle[k]);
+        }
     }
 
     /// Complex powers entering a branch at its `from` and `to` ends (current bus voltages).

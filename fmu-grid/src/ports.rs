@@ -1,4 +1,5 @@
-//! Names of the grid FMU's connectors that a system wires: DER slots and the PCC.
+//! Names of the grid FMU's connectors that a system wires: DER slots, the PCC, the points of
+//! coupling of a DVPP area and the R/X parameters of its lines.
 
 /// The input or output `port` of DER slot `k` (1-based): `der[k].port`.
 fn der(k: usize, port: &str) -> String {
@@ -69,6 +70,39 @@ pub const PCC_F: &str = "pcc.f";
 /// Output: PCC voltage magnitude.
 pub const PCC_V: &str = "pcc.v";
 
+/// The output `port` of point of coupling `k` (1-based): `poc[k].port`.
+fn poc(k: usize, port: &str) -> String {
+    format!("poc[{k}].{port}")
+}
+
+/// POC `k` (1-based), output: active power the area delivers into the POC bus.
+pub fn poc_p(k: usize) -> String {
+    poc(k, "p")
+}
+
+/// POC `k` (1-based), output: reactive power the area delivers into the POC bus.
+pub fn poc_q(k: usize) -> String {
+    poc(k, "q")
+}
+
+/// POC `k` (1-based), output: voltage magnitude at the POC bus.
+pub fn poc_v(k: usize) -> String {
+    poc(k, "v")
+}
+
+/// POC `k` (1-based), output: frequency at the POC bus.
+pub fn poc_f(k: usize) -> String {
+    poc(k, "f")
+}
+
+/// Parameter: homogeneous R/X ratio of the case's `[mv]` lines.
+pub const MV_RX: &str = "mv.rx";
+
+/// Parameter: R/X ratio of the `k`-th (1-based) line of the case's `[mv]` group (0: `mv.rx`).
+pub fn mv_line_rx(k: usize) -> String {
+    format!("mv.line[{k}].rx")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -113,5 +147,29 @@ mod tests {
             }
             assert!(k > 1, "{case}: no DER slot found");
         }
+    }
+
+    #[test]
+    fn poc_and_rx_names_match_the_declared_variables() {
+        let md = described("ieee9_mv");
+        for k in 1..=2 {
+            for p in [poc_p(k), poc_q(k), poc_v(k), poc_f(k)] {
+                assert_port(&md, &p, Causality::Output);
+            }
+        }
+        assert!(md.variable(&poc_p(3)).is_none());
+        assert_port(&md, MV_RX, Causality::Parameter);
+        let n = fmu_grid_case().mv.unwrap().lines.len();
+        for k in 1..=n {
+            assert_port(&md, &mv_line_rx(k), Causality::Parameter);
+        }
+        assert!(md.variable(&mv_line_rx(n + 1)).is_none());
+        // cases without [[poc]] or [mv] declare none of them
+        let md = described("ieee9_dvpp");
+        assert!(md.variable(&poc_p(1)).is_none() && md.variable(MV_RX).is_none());
+    }
+
+    fn fmu_grid_case() -> crate::Case {
+        crate::Case::builtin("ieee9_mv").unwrap()
     }
 }

@@ -28,6 +28,7 @@ struct GridSnapshot {
     v: Vec<C64>,
     der_angle: Vec<f64>,
     pcc_angle: f64,
+    poc_angle: Vec<f64>,
     h_max: f64,
 }
 
@@ -58,6 +59,7 @@ impl GridSnapshot {
             v: g.v.clone(),
             der_angle: g.der_angle.clone(),
             pcc_angle: g.pcc_angle,
+            poc_angle: g.poc_angle.clone(),
             h_max: g.h_max,
         })
     }
@@ -77,6 +79,7 @@ impl GridSnapshot {
             (g.ders.len(), self.der_limits.len(), "DER limits"),
             (g.ders.len(), self.der_angle.len(), "DER angles"),
             (g.x.len(), self.x.len(), "states"),
+            (g.pocs.len(), self.poc_angle.len(), "POC angles"),
         ];
         for (want, got, what) in sizes {
             if want != got {
@@ -113,6 +116,7 @@ impl GridSnapshot {
         g.v = self.v;
         g.der_angle = self.der_angle;
         g.pcc_angle = self.pcc_angle;
+        g.poc_angle = self.poc_angle;
         g.h_max = self.h_max;
         g.net = None;
         Ok(g)

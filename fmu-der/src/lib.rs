@@ -150,6 +150,10 @@ struct Startup {
     v_last: f64,
 }
 
+/// Below this terminal voltage (pu) a grid-following unit's PLL has no angle to lock to: the
+/// unit loses synchronism and blocks (a grid-forming unit keeps forming its voltage).
+const PLL_V_MIN: f64 = 0.05;
+
 /// The episodes of each limit (the `limit.*` outputs).
 #[derive(Clone, Default, Serialize, Deserialize)]
 struct LimitEpisodes {
@@ -1316,7 +1320,7 @@ impl Model for Der {
             )),
             synchronized: v.boolean(Spec::boolean_output(
                 "synchronized",
-                "the unit is synchronized (false while it waits for the terminal voltage after a start from zero voltage)",
+                "the unit is synchronized (false while it waits for the terminal voltage after a start from zero voltage, and for a grid-following unit that lost its terminal voltage)",
             )),
             rt: None,
         })
@@ -1353,6 +1357,20 @@ impl Der {
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
+        let following = matches!(rt.channel, Channel::Following(_));
+        if following && rt.startup.is_none() && s[self.v] < PLL_V_MIN {
+            // The PLL has no voltage to lock to: the unit has lost synchronism. It blocks its
+            // current and waits for the voltage as at a start from zero voltage.
+            rt.startup = Some(Startup {
+                ok_since: None,
+                v_last: s[self.v],
+            });
+            s[self.synchronized] = false;
+            ctx.warn(format!(
+                "t = {t:.4} s: terminal voltage {:.4} pu: the PLL has no voltage to lock to; lost synchronism, the current is blocked until the voltage returns above startup.v_sync",
+                s[self.v]
+            ));
+        }
         if rt.startup.is_some() && !self.wait_for_voltage(rt, s, t, h, ctx) {
             self.step_dc(rt, s, t, h, ctx);
             return Ok(());

@@ -741,6 +741,15 @@ impl Grid {
     }
 
     /// All outputs at the current time (from the last network solution).
+    /// Whether a voltage source is left: a machine in service or a grid-forming slot. Without
+    /// one the network is de-energized (every bus voltage 0): a phasor network of current
+    /// injections alone has no angle reference, and grid-following units, which only follow the
+    /// voltage they measure, cannot hold one (they lose synchronism).
+    pub fn energized(&self) -> bool {
+        self.machines.iter().any(|m| m.in_service)
+            || self.ders.iter().any(|d| d.kind == DerKind::GridForming)
+    }
+
     pub fn outputs(&self) -> Outputs {
         let mut out = Outputs {
             t: self.t,

@@ -196,6 +196,8 @@ pub struct GridFmu {
     /// input still holding them has not been set by the master.
     input_auto: Vec<(f64, f64)>,
     coi_f: Real,
+    /// `energized`: a voltage source is left.
+    energized: Boolean,
     /// Generation, load, losses and generation − load − losses.
     balance: [Real; 4],
     /// The reduced internal step (if any) has been logged.
@@ -245,6 +247,7 @@ impl GridFmu {
             s[vf] = p.f;
         }
         s[self.coi_f] = o.coi_f;
+        s[self.energized] = self.grid.energized();
         let [gen, load, loss, mismatch] = self.balance;
         s[gen] = o.gen_p;
         s[load] = o.load_p;
@@ -514,6 +517,11 @@ impl Model for GridFmu {
                  s/(T_f s + 1), T_f from the case (default 0.02 s)",
             )),
         ];
+        let energized = v.boolean(Spec::boolean_output(
+            "energized",
+            "a voltage source is in service (a machine or a grid-forming unit); false: the \
+             network is de-energized, grid-following units alone cannot hold a voltage",
+        ));
         let coi_f = v.real(Spec::output(
             "coi.f",
             "pu",
@@ -676,6 +684,7 @@ impl Model for GridFmu {
             rx,
             input_auto,
             coi_f,
+            energized,
             balance,
             step_logged: false,
         })
@@ -710,7 +719,7 @@ impl Model for GridFmu {
         s: &mut Store,
         t: f64,
         h: f64,
-        _: &mut Context,
+        ctx: &mut Context,
     ) -> Result<(), ModelError> {
         if !self.started {
             self.grid
@@ -741,9 +750,17 @@ impl Model for GridFmu {
                 .set_der_limit(k, limit)
                 .map_err(|e| ModelError(format!("slot {}: {e}", k + 1)))?;
         }
+        let energized = self.grid.energized();
         self.grid
             .step(t, h)
             .map_err(|e| ModelError(format!("grid step from t = {t} s: {e}")))?;
+        if energized && !self.grid.energized() {
+            ctx.warn(format!(
+                "in the step from t = {t} s: no voltage source is left (no machine in service, no grid-forming \
+                 unit): the grid-following units have no voltage to synchronize to and lose \
+                 synchronism; the network is de-energized (blackout)"
+            ));
+        }
         self.write_outputs(s);
         Ok(())
     }

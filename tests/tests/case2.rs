@@ -2,7 +2,8 @@
 //! (`case2_load_eps000` … `eps100`, 42 MW at bus 2) matches `T_des` about equally well, a larger
 //! ε lowers the centre-of-inertia RoCoF, no unit oscillates from one step to the next, and every
 //! unit stays within its current limit, its dc link within its range and its energy account
-//! closed.
+//! closed; after the outage of SG1 and SG3 the island settles on the desired response with
+//! grid-forming units, and without any (ε = 0) the grid-following units lose synchronism.
 
 use dvpp_cosim::master::{self, Options};
 use dvpp_cosim::Table;
@@ -82,5 +83,85 @@ fn every_grid_forming_share_matches_t_des_without_step_to_step_oscillation() {
     // A larger grid-forming share gives a smaller COI RoCoF (in magnitude).
     for w in rocof.windows(2) {
         assert!(w[1] > w[0], "COI RoCoF does not fall with ε: {rocof:?}");
+    }
+}
+
+/// The outage of SG1 and SG3 (`case2_outage_eps*`, ratings ×3.5): with grid-forming units the
+/// island settles on the desired response within the converters' limits (ε = 1 within its
+/// ratings); with none (ε = 0) nothing holds the voltage, the grid reports it and every
+/// grid-following unit reports the loss of synchronism, and the run goes on to its end.
+#[test]
+fn the_outage_settles_with_grid_forming_units_and_loses_synchronism_without() {
+    for eps in EPS {
+        let name = format!("case2_outage_eps{eps}");
+        let t = master::simulate(&scenario(&name), &Options::default())
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        let time = column(&t, "time");
+        assert!(
+            (time.last().unwrap() - 20.0).abs() < 1e-9,
+            "{name} ended early"
+        );
+        let after = time.partition_point(|&x| x < 1.0);
+        let energized = column(&t, "grid.energized");
+        let units: Vec<String> = t
+            .columns
+            .iter()
+            .filter_map(|c| c.strip_suffix(".i_ac"))
+            .map(str::to_owned)
+            .collect();
+        let lost: Vec<&String> = units
+            .iter()
+            .filter(|u| {
+                column(&t, &format!("{u}.synchronized"))[after..]
+                    .iter()
+                    .any(|&s| s < 0.5)
+            })
+            .collect();
+        let mut worst = 0.0_f64;
+        for u in &units {
+            let (i, lim) = (
+                column(&t, &format!("{u}.i_ac")),
+                column(&t, &format!("{u}.i_limit")),
+            );
+            let ratio = i.iter().zip(&lim).map(|(a, b)| a / b).fold(0.0, f64::max);
+            assert!(ratio <= 1.0 + 1e-6, "{name} {u}: current {ratio} x I_max");
+            worst = worst.max(i.iter().cloned().fold(0.0, f64::max));
+        }
+        let f = column(&t, "grid.pcc.f");
+        let f_ref = column(&t, "operator.ref.df");
+        let (f_end, ref_end) = (
+            (f.last().unwrap() - 1.0) * 50.0,
+            f_ref.last().unwrap() * 50.0,
+        );
+        println!(
+            "{name}: energized at the end {}, units that lost synchronism {lost:?}, PCC f settles at {f_end:+.3} Hz (desired {ref_end:+.3} Hz), largest current {worst:.2} of rating",
+            energized.last().unwrap()
+        );
+        if eps == "000" {
+            assert!(
+                energized[after..].iter().all(|&e| e < 0.5),
+                "{name}: energized"
+            );
+            assert_eq!(
+                lost.len(),
+                units.len(),
+                "{name}: every unit loses synchronism"
+            );
+            let v = column(&t, "grid.pcc.v");
+            assert!(
+                v[after..].iter().all(|&x| x == 0.0),
+                "{name}: a dead island"
+            );
+        } else {
+            assert!(energized.iter().all(|&e| e > 0.5), "{name}: de-energized");
+            assert!(lost.is_empty(), "{name}: {lost:?} lost synchronism");
+            assert!(
+                (f_end - ref_end).abs() < 0.02,
+                "{name}: settles at {f_end} Hz, desired {ref_end} Hz"
+            );
+        }
+        if eps == "100" {
+            assert!(worst <= 1.0, "{name}: {worst} of rated current");
+        }
     }
 }

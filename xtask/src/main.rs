@@ -2,6 +2,7 @@
 
 mod catalog;
 mod docs;
+mod outage;
 mod scenario;
 mod sweep;
 mod win64;
@@ -84,6 +85,8 @@ tasks:
            bundle, then run case study II (case2_load_eps000 ... eps100) on all cores: the 42 MW
            step per ε and N (default 40) seeded Monte Carlo load steps each; summary in
            results/case2_sweep.csv, distributions in tests/figures/case2_distributions.svg
+  outage   bundle, then run case study II's outage of SG1 and SG3 (case2_outage_eps000 ...
+           eps100): a verdict per ε in results/case2_outage.csv, tests/figures/case2_outage.svg
   docs     regenerate README.md's variable tables from the FMUs' model descriptions";
 
 fn main() -> ExitCode {
@@ -101,6 +104,7 @@ fn main() -> ExitCode {
         Some("cosim") => run(master_binary("cosim").args(&args[1..])),
         Some("demo") => demo(),
         Some("sweep") => bundle(&[]).and_then(|_| sweep::sweep(&root(), &args[1..])),
+        Some("outage") => bundle(&[]).and_then(|_| outage::outage(&root()).map(|_| ())),
         Some("bench") => bench(),
         Some("test") => test(),
         Some("docs") => write_docs(),

@@ -376,6 +376,18 @@ fn table(rows: &[Row]) -> String {
     out
 }
 
+/// Save `fig` as `results/NAME` and `tests/figures/NAME` (the README shows the latter).
+pub fn save_figure(root: &Path, fig: &Figure, name: &str) -> Result<(), String> {
+    for path in [
+        root.join("results").join(name),
+        root.join("tests/figures").join(name),
+    ] {
+        fig.save(&path)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    Ok(())
+}
+
 /// `cargo xtask sweep [--runs N] [--seed S]`: `runs` Monte Carlo runs per ε (default 40).
 pub fn sweep(root: &Path, args: &[String]) -> Result<(), String> {
     let mut runs = 40usize;
@@ -406,14 +418,7 @@ pub fn sweep(root: &Path, args: &[String]) -> Result<(), String> {
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;
     let csv = results.join("case2_sweep.csv");
     write_csv(&csv, &rows)?;
-    let fig = figure(&rows);
-    for path in [
-        results.join("case2_distributions.svg"),
-        root.join("tests/figures/case2_distributions.svg"),
-    ] {
-        fig.save(&path)
-            .map_err(|e| format!("{}: {e}", path.display()))?;
-    }
+    save_figure(root, &figure(&rows), "case2_distributions.svg")?;
     let failed: Vec<&Row> = rows.iter().filter(|r| r.error.is_some()).collect();
     println!("{}", table(&rows));
     println!(

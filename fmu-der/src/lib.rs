@@ -9,6 +9,13 @@
 //!   measured operating point, so a coupled run starts flat.
 //! * Grid-following (`mode` = 2): a PLL on `v_angle` measures `Δf`; the converter injects
 //!   `p_ref = p₀ - T_i^fp Δf` and `q_ref = q₀ - T_i^vq Δv`, limited to the rating circle.
+//! * Rotational power control (`rot.rx` = R/X of the lossy lines around the unit, > 0): both
+//!   channels work on the rotated powers `p' = (p - r q)/√(1+r²)`, `q' = (r p + q)/√(1+r²)`
+//!   ([`dvpp_control::Rotation`]) instead of `p`, `q`. Grid-forming: `Δf = -T_i^pf Δp'` and the
+//!   PI on `E` makes `q'` track `q'₀ - T_i^vq Δv`; grid-following: the references are
+//!   `p'₀ - T_i^fp Δf` and `q'₀ - T_i^vq Δv`, rotated back to `p_ref`, `q_ref`. The set point
+//!   `(p₀, q₀)` is rotated the same way; limits act on `p`, `q`. `rot.rx` = 0 is the classical
+//!   control, bit for bit. Outputs `p_rot`, `q_rot` are the measured `p'`, `q'`.
 //!
 //! The set point `p₀` is the dispatch at initialization, curtailed to what the primary source
 //! allows with its reserve: `p₀(t) = min(p_dispatch, deload · P_avail(t) - G_dc)` (a cloud that
@@ -30,8 +37,8 @@ pub use preset::{Preset, UnitDefaults};
 use dc::{DcParams, DcSide};
 use dvpp_control::phasor::internal_voltage;
 use dvpp_control::{
-    Adpf, Complex, GflFpModel, GfmPfModel, Hold, LowPassSpec, LtiSimulator, StateSpace, TDes,
-    VqModel,
+    Adpf, Complex, GflFpModel, GfmPfModel, Hold, LowPassSpec, LtiSimulator, Rotation, StateSpace,
+    TDes, VqModel,
 };
 use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Spec, Store, Variables};
 use limits::Episode;
@@ -127,8 +134,11 @@ struct Runtime {
     theta0: f64,
     /// Grid-following: the PLL frequency held over the next step.
     df_held: f64,
-    /// Grid-forming: the reactive reference held over the next step.
+    /// Grid-forming: the reactive reference held over the next step, rotated (`q'`; `q` when
+    /// `rot.rx` = 0).
     q_ref: f64,
+    /// `(p, q) ↔ (p', q')` for the lines' R/X (`rot.rx`; the identity at 0).
+    rot: Rotation,
     /// Power the limits withheld at the last step (what the internal voltage would have
     /// delivered minus what the converter imposed), on S_base: the controls see the unlimited
     /// power, so the internal node stays synchronized while limited.
@@ -236,6 +246,9 @@ pub struct Der {
     limit_source: Boolean,
     limit_modulation: Boolean,
     synchronized: Boolean,
+    rot_rx: Real,
+    p_rot: Real,
+    q_rot: Real,
     rt: Option<Runtime>,
 }
 
@@ -627,6 +640,7 @@ impl Der {
         } else {
             self.converter_power(s, r)
         };
+        let rot = Rotation::from_rx(s[self.rot_rx]).map_err(|e| err("rot.rx", e))?;
         let mut rt = Runtime {
             channel,
             vq,
@@ -640,7 +654,8 @@ impl Der {
             e0,
             theta0,
             df_held: 0.0,
-            q_ref: if waiting { 0.0 } else { q },
+            q_ref: if waiting { 0.0 } else { rot.rotate(p, q).1 },
+            rot,
             withheld: (0.0, 0.0),
             startup: waiting.then_some(Startup {
                 ok_since: None,
@@ -669,7 +684,7 @@ impl Der {
         s[self.df] = 0.0;
         s[self.p_ref] = if waiting { 0.0 } else { p };
         s[self.p_set] = s[self.p_ref];
-        s[self.q_ref] = rt.q_ref;
+        s[self.q_ref] = if waiting { 0.0 } else { q };
         s[self.p_avail] = self.available(s, 0.0);
         s[self.synchronized] = !waiting;
         if waiting && again.is_none() {
@@ -686,6 +701,7 @@ impl Der {
         }
         self.write_dc(s, &rt);
         self.write_limits(s, &rt);
+        self.write_rotated(s, &rt);
         Ok(rt)
     }
 
@@ -760,6 +776,13 @@ impl Der {
         s[self.p_min] = lo * s_rated / s_base - r_loss;
         s[self.p_max] = hi * s_rated / s_base - r_loss;
         s[self.i_limit] = s[self.i_max];
+    }
+
+    /// The measured rotated powers `p'`, `q'` (outputs `p_rot`, `q_rot`).
+    fn write_rotated(&self, s: &mut Store, rt: &Runtime) {
+        let (p_rot, q_rot) = rt.rot.rotate(s[self.p], s[self.q]);
+        s[self.p_rot] = p_rot;
+        s[self.q_rot] = q_rot;
     }
 
     /// The limit flags.
@@ -1322,6 +1345,32 @@ impl Model for Der {
                 "synchronized",
                 "the unit is synchronized (false while it waits for the terminal voltage after a start from zero voltage, and for a grid-following unit that lost its terminal voltage)",
             )),
+            // Declared last, so the variables above keep their value references.
+            rot_rx: v.real(
+                Spec::parameter(
+                    ports::ROT_RX,
+                    0.0,
+                    "1",
+                    "rotational power control: R/X of the lines around the unit; the p-f channel shapes p' = (p - rx q)/sqrt(1 + rx^2) and the v-q channel controls q' = (rx p + q)/sqrt(1 + rx^2) instead of p and q (0 = classical p-f and q-v control)",
+                )
+                .min(0.0),
+            ),
+            p_rot: v.real(
+                Spec::output(
+                    ports::P_ROT,
+                    "pu",
+                    "measured rotated active power p' = (p - rx q)/sqrt(1 + rx^2) on S_base (rx = rot.rx; p when 0)",
+                )
+                .initial_dependencies(&[ports::P, ports::Q]),
+            ),
+            q_rot: v.real(
+                Spec::output(
+                    ports::Q_ROT,
+                    "pu",
+                    "measured rotated reactive power q' = (rx p + q)/sqrt(1 + rx^2) on S_base (rx = rot.rx; q when 0)",
+                )
+                .initial_dependencies(&[ports::P, ports::Q]),
+            ),
             rt: None,
         })
     }
@@ -1434,8 +1483,13 @@ impl Der {
                 }
                 // The controls see the power the internal voltage delivers: the measurement
                 // plus what the limits withheld.
-                let (p_fb, q_fb) = (s[self.p] + rt.withheld.0, s[self.q] + rt.withheld.1);
-                let dp = (p_fb - p_set) * to_dvpp;
+                // Rotational control: both channels see p', q' and the set point rotated (the
+                // identity at rot.rx = 0).
+                let (p_fb, q_fb) = rt
+                    .rot
+                    .rotate(s[self.p] + rt.withheld.0, s[self.q] + rt.withheld.1);
+                let (p_set_rot, q_set_rot) = rt.rot.rotate(p_set, rt.q0);
+                let dp = (p_fb - p_set_rot) * to_dvpp;
                 s[self.p_ref] = p_set;
                 let (df, df_int) = f.pf.step_with_integral(dp, h);
                 s[self.df] = df;
@@ -1450,8 +1504,9 @@ impl Der {
                 if unclamped == f.e {
                     f.e_int = integral;
                 }
-                rt.q_ref = rt.q0 + rt.vq.step(dv, h) / to_dvpp;
-                s[self.q_ref] = rt.q_ref;
+                rt.q_ref = q_set_rot + rt.vq.step(dv, h) / to_dvpp;
+                // Reported as the q at which q' meets its reference at the measured p'.
+                s[self.q_ref] = rt.rot.unrotate(p_fb, rt.q_ref).1;
                 // The converter imposes the internal voltage, within the modulation limit; its
                 // output stage holds the current within I_max and the active power within the
                 // dc link's budget (enforced in the network solution, `i_limit`, `p_min`,
@@ -1511,9 +1566,13 @@ impl Der {
                 };
                 g.dv += kv * (dv - g.dv);
                 let dq = rt.vq.step(g.dv, h) / to_dvpp;
+                // Rotational control: dp, dq are changes of p', q' about the rotated set point;
+                // the converter's references are their back-rotation (the identity at rot.rx = 0).
+                let (p_set_rot, q_set_rot) = rt.rot.rotate(p_set, rt.q0);
+                let (p_cmd, q_cmd) = rt.rot.unrotate(p_set_rot + dp, q_set_rot + dq);
                 // References as currents at the measured voltage, limited, and back.
                 let vm = v.max(limits::V_FLOOR) / to_rated;
-                let wanted = ((p_set + dp) / vm, (rt.q0 + dq) / vm);
+                let wanted = (p_cmd / vm, q_cmd / vm);
                 let ((ip, iq), cur, dcl) =
                     limits::saturate_following(wanted, v, i_max, budget, s[self.priority]);
                 // The converter's currents follow their commands with the lag `current.tau`
@@ -1589,6 +1648,7 @@ impl Der {
         );
         self.write_dc(s, rt);
         self.write_limits(s, rt);
+        self.write_rotated(s, rt);
     }
 
     /// A unit started below `startup.v_sync`: zero current until the voltage has been above

@@ -31,6 +31,11 @@ pub const P_AVAIL: &str = "P_avail";
 /// Output: the active set point (dispatch curtailed by the primary source).
 pub const P_SET: &str = "p_set";
 
+/// Output: the measured rotated active power `p'`.
+pub const P_ROT: &str = "p_rot";
+/// Output: the measured rotated reactive power `q'`.
+pub const Q_ROT: &str = "q_rot";
+
 /// Output: the current limit, for the grid's slot.
 pub const I_LIMIT: &str = "i_limit";
 /// Output: lowest active power the dc link can take, for the grid's slot.
@@ -54,6 +59,8 @@ pub const TDES_DQ: &str = "Tdes.Dq";
 pub const R_F: &str = "R_f";
 /// Parameter: reactance behind the imposed voltage.
 pub const X_F: &str = "X_f";
+/// Parameter: R/X of the lines the rotational power control compensates (0 = classical).
+pub const ROT_RX: &str = "rot.rx";
 /// Parameter: available active power of the primary source at the start.
 pub const P_AVAIL0: &str = "P_avail0";
 /// Parameter: ADPF shape of the p-f channel (`kind::*`).
@@ -95,7 +102,7 @@ mod tests {
             check(p, Causality::Input);
         }
         for p in [
-            THETA, E, P_REF, Q_REF, P_AVAIL, P_SET, I_LIMIT, P_MIN, P_MAX,
+            THETA, E, P_REF, Q_REF, P_AVAIL, P_SET, I_LIMIT, P_MIN, P_MAX, P_ROT, Q_ROT,
         ] {
             check(p, Causality::Output);
         }
@@ -108,6 +115,7 @@ mod tests {
             TDES_DQ,
             R_F,
             X_F,
+            ROT_RX,
             P_AVAIL0,
             ADPF_P_KIND,
             ADPF_P_TAU,

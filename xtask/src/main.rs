@@ -1,5 +1,6 @@
 //! `cargo xtask`: builds and bundles the FMUs, runs the tests and the demo.
 
+mod case3;
 mod catalog;
 mod docs;
 mod outage;
@@ -85,6 +86,11 @@ tasks:
            bundle, then run case study II (case2_load_eps000 ... eps100) on all cores: the 42 MW
            step per ε and N (default 40) seeded Monte Carlo load steps each; summary in
            results/case2_sweep.csv, distributions in tests/figures/case2_distributions.svg
+  case3 [--draws N] [--seed S]
+           bundle, then run case study III (case3_ext_pf, case3_ext_rot, case3_int_pf,
+           case3_int_rot) and N (default 24) seeded random R/X per MV line for each rotational
+           scenario, on all cores: results/case3.csv, tests/figures/case3_response.svg and
+           case3_rx_envelope.svg
   outage   bundle, then run case study II's outage of SG1 and SG3 (case2_outage_eps000 ...
            eps100): a verdict per ε in results/case2_outage.csv, tests/figures/case2_outage.svg
   docs     regenerate README.md's variable tables from the FMUs' model descriptions";
@@ -104,6 +110,7 @@ fn main() -> ExitCode {
         Some("cosim") => run(master_binary("cosim").args(&args[1..])),
         Some("demo") => demo(),
         Some("sweep") => bundle(&[]).and_then(|_| sweep::sweep(&root(), &args[1..])),
+        Some("case3") => bundle(&[]).and_then(|_| case3::case3(&root(), &args[1..])),
         Some("outage") => bundle(&[]).and_then(|_| outage::outage(&root()).map(|_| ())),
         Some("bench") => bench(),
         Some("test") => test(),

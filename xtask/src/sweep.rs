@@ -53,10 +53,10 @@ struct Row {
 }
 
 /// xorshift64*: a small seeded generator, enough for drawing disturbances.
-struct Rng(u64);
+pub struct Rng(u64);
 
 impl Rng {
-    fn new(seed: u64) -> Self {
+    pub fn new(seed: u64) -> Self {
         Rng(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
     }
 
@@ -68,7 +68,7 @@ impl Rng {
         (x >> 11) as f64 / (1u64 << 53) as f64
     }
 
-    fn between(&mut self, lo: f64, hi: f64) -> f64 {
+    pub fn between(&mut self, lo: f64, hi: f64) -> f64 {
         lo + (hi - lo) * self.uniform()
     }
 }
@@ -103,7 +103,12 @@ fn jobs(runs: usize, seed: u64) -> Vec<Job> {
 }
 
 /// Set (or add) a start value of a component.
-fn set(pkg: &mut ssp::Package, component: &str, name: &str, value: Value) -> Result<(), String> {
+pub fn set_start(
+    pkg: &mut ssp::Package,
+    component: &str,
+    name: &str,
+    value: Value,
+) -> Result<(), String> {
     let c = pkg
         .system
         .components
@@ -129,14 +134,14 @@ fn prepare(base: &ssp::Package, job: &Job) -> Result<ssp::Package, String> {
         .expect("a listed bus")
         .1;
     for (_, k) in BUSES {
-        set(
+        set_start(
             &mut pkg,
             "grid",
             &format!("event[{k}].enabled"),
             Value::Boolean(k == event),
         )?;
     }
-    set(
+    set_start(
         &mut pkg,
         "grid",
         &format!("event[{event}].dP"),

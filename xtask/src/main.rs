@@ -76,7 +76,8 @@ tasks:
            and libcosim; the coupling error and cost of jacobi, gauss-seidel and iterative
            against a 0.05 ms run; our master's ns per macro step (a ring of three C FMUs,
            case1_load); ns per fmi2DoStep of each benchmark FMU; cost per unit for 3 to
-           768 DER units, shared and separate binaries, 1 and 2 threads
+           768 DER units, shared and separate binaries, 1 and 2 threads, and the same
+           systems in libcosim
   demo     bundle, then run case study I (case1_load, case1_cloud) in our master: CSVs and
            figures in results/, figures in tests/figures/, metrics table into README.md
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
@@ -402,8 +403,20 @@ fn bench() -> Result {
     // Cost per unit against the number of units, shared and separate binaries, 1 and 2
     // threads (docs/scaling.md).
     let der = root().join("dist").join("default").join("dvpp_der.fmu");
-    c.arg(format!("scale|{}|3,48,192,768|200000", der.display()));
-    run(&mut c)
+    let systems = root().join("target").join("bench").join("scale");
+    let _ = std::fs::remove_dir_all(&systems);
+    c.arg(format!(
+        "scale|{}|3,48,192,768|200000|{}",
+        der.display(),
+        systems.display()
+    ));
+    run(&mut c)?;
+    // The same systems in libcosim, side by side with ours.
+    run(Command::new(&python)
+        .arg(root().join("tests").join("python").join("bench_scale.py"))
+        .arg(&systems)
+        .arg(&cosim)
+        .arg("200000"))
 }
 
 /// The case study I runs of the demo and their labels.

@@ -1,4 +1,5 @@
-//! `scale|FMU|N,N,...|UNIT_STEPS`: the master's cost against the number of units.
+//! `scale|FMU|N,N,...|UNIT_STEPS[|KEEP_DIR]`: the master's cost against the number of units
+//! (with KEEP_DIR the systems are left in `KEEP_DIR/nN/` for other masters).
 //!
 //! For each N a system of N components of FMU (`der1` … `derN`, every output recorded as the
 //! bundler records a DER's, inputs held at their start values, no connections) is written as
@@ -242,10 +243,14 @@ fn fit(xs: &[f64], ys: &[f64]) -> (f64, f64, f64) {
 /// `scale|FMU|N,N,...|UNIT_STEPS`: the table and fits on stdout.
 pub fn measure(spec: &str) -> Result<(), String> {
     let parts: Vec<&str> = spec.split('|').collect();
-    let [_, fmu, ns, unit_steps] = parts.as_slice() else {
-        return Err(format!(
-            "bad benchmark '{spec}': expected scale|FMU|N,N,...|UNIT_STEPS"
-        ));
+    let (fmu, ns, unit_steps, keep) = match parts.as_slice() {
+        [_, fmu, ns, unit_steps] => (fmu, ns, unit_steps, None),
+        [_, fmu, ns, unit_steps, keep] => (fmu, ns, unit_steps, Some(Path::new(keep))),
+        _ => {
+            return Err(format!(
+                "bad benchmark '{spec}': expected scale|FMU|N,N,...|UNIT_STEPS[|KEEP_DIR]"
+            ))
+        }
     };
     let ns: Vec<usize> = ns
         .split(',')
@@ -254,9 +259,15 @@ pub fn measure(spec: &str) -> Result<(), String> {
     let unit_steps: u64 = unit_steps
         .parse()
         .map_err(|_| format!("scale: bad UNIT_STEPS '{unit_steps}'"))?;
-    let root = std::env::temp_dir().join(format!("dvpp-bench-scale-{}", std::process::id()));
+    // KEEP_DIR: the systems stay there (`nN/`), for other masters to run the same ones.
+    let root = keep.map_or_else(
+        || std::env::temp_dir().join(format!("dvpp-bench-scale-{}", std::process::id())),
+        Path::to_path_buf,
+    );
     let result = measure_in(&root, Path::new(fmu), &ns, unit_steps);
-    let _ = std::fs::remove_dir_all(&root);
+    if keep.is_none() {
+        let _ = std::fs::remove_dir_all(&root);
+    }
     result
 }
 

@@ -16,11 +16,16 @@
 //!
 //! A DER split into a grid-forming and a grid-following part (case study II) appears as two
 //! entries whose `share` (ε and 1 - ε) scales its availability and its rating.
+//!
+//! A DVPP area with several points of coupling (case study III, `[model] pocs = n`): the desired
+//! frequency deviation is matched at the POCs, `ref.df = -T_pf Σ_k Δp'_poc,k`, with `Δp'` the
+//! POC power deviation rotated by the lines' R/X (parameter `rot.rx`, as the DERs'; 0: plain
+//! `Δp`), and every POC reports its own matching error `poc[k].err_df`.
 
 pub mod ports;
 
 use dvpp_control::adaptation::{reactive_capacity, renormalize_with_floor};
-use dvpp_control::{Hold, LtiSimulator, TDes};
+use dvpp_control::{Hold, LtiSimulator, Rotation, TDes};
 use fmi_export::{Context, Model, ModelError, Real, Spec, Store, Variables};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
@@ -70,6 +75,15 @@ fn one() -> f64 {
 #[serde(deny_unknown_fields)]
 pub struct OperatorConfig {
     pub ders: Vec<DerEntry>,
+    /// Points of coupling of a DVPP area (inputs `poc[k].p`, `.q`, `.f`, `.v`): `ref.df` is then
+    /// matched at them (`-T_pf Σ_k Δp'_poc,k`); 0 (default): at the PCC.
+    #[serde(default)]
+    pub pocs: usize,
+    /// Start value of the parameter `rot.rx` (declared with `pocs` > 0): the R/X ratio the
+    /// rotation `p' = (p - rx q)/sqrt(1 + rx²)` of the POC powers compensates, as the DERs'
+    /// `rot.rx` (0: classical, plain `Δp`).
+    #[serde(default)]
+    pub rot_rx: f64,
 }
 
 impl Default for OperatorConfig {
@@ -88,6 +102,8 @@ impl Default for OperatorConfig {
                 der("pv", Role::LowPass, 73.0),
                 der("bess", Role::Complement, 60.0),
             ],
+            pocs: 0,
+            rot_rx: 0.0,
         }
     }
 }
@@ -112,8 +128,46 @@ impl OperatorConfig {
         if !self.ders.iter().any(|d| d.role == Role::LowPass) {
             return Err("[model] ders: no low-pass unit carries the steady state".into());
         }
+        if self.pocs > MAX_POCS {
+            return Err(format!(
+                "[model] pocs = {}: at most {MAX_POCS} points of coupling",
+                self.pocs
+            ));
+        }
+        Rotation::from_rx(self.rot_rx).map_err(|e| format!("[model] rot_rx: {e}"))?;
+        if self.rot_rx != 0.0 && self.pocs == 0 {
+            return Err(format!(
+                "[model] rot_rx = {}: the rotation applies to the POC powers, but pocs = 0",
+                self.rot_rx
+            ));
+        }
         Ok(())
     }
+}
+
+/// Largest number of points of coupling.
+pub const MAX_POCS: usize = 16;
+
+/// Handles of one point of coupling's variables.
+#[derive(Clone, Serialize, Deserialize)]
+struct PocVars {
+    p: Real,
+    q: Real,
+    f: Real,
+    err_df: Real,
+}
+
+/// The POCs of a DVPP area (`[model] pocs` > 0).
+#[derive(Clone, Serialize, Deserialize)]
+struct Pocs {
+    vars: Vec<PocVars>,
+    /// Parameter `rot.rx` and output `poc.dp`.
+    rot_rx: Real,
+    dp: Real,
+    /// The rotation of `rot.rx`, fixed at initialization.
+    rot: Rotation,
+    /// Every POC's p, q at initialization.
+    pq0: Vec<(f64, f64)>,
 }
 
 /// Handles of one DER's variables.
@@ -221,6 +275,8 @@ pub struct Operator {
     err_dv: Real,
     sum_mu_p: Real,
     sum_mu_q: Real,
+    /// Points of coupling (`[model] pocs` > 0).
+    pocs: Option<Pocs>,
     /// `-T_pf` realized on Δp_pcc (state survives FMU state snapshots).
     t_pf: Option<LtiSimulator>,
     /// PCC operating point at initialization: p, q, v.
@@ -367,6 +423,74 @@ impl Operator {
 
     fn desired_dv(&self, s: &Store) -> f64 {
         -s[self.dq] * (s[self.pcc_q] - self.pcc0[1]) * s[self.s_base] / s[self.s_dvpp]
+    }
+}
+
+impl Pocs {
+    /// `Σ_k Δp'_poc,k` less the rotated change `dp_set` of the DVPP's summed set point, on
+    /// S_base: a set point moves a unit's `p` (its `q'`-`v` loop holds `q`), so its `p'` by
+    /// the rotation's `p` component.
+    fn rotated_deviation(&self, s: &Store, dp_set: f64) -> f64 {
+        let sum: f64 = self
+            .vars
+            .iter()
+            .zip(&self.pq0)
+            .map(|(p, &(p0, q0))| self.rot.rotate(s[p.p] - p0, s[p.q] - q0).0)
+            .sum();
+        sum - self.rot.rotate(dp_set, 0.0).0
+    }
+
+    /// Declare the variables of `n` POCs and the rotation (start `rx`).
+    fn declare(v: &mut Variables, n: usize, rx: f64) -> Pocs {
+        let rot_rx = v.real(
+            Spec::parameter(
+                ports::ROT_RX,
+                rx,
+                "1",
+                "R/X of the DVPP area's lines the POC powers are rotated for: p' = (p - rx q)/sqrt(1 + rx^2) (0 = plain p, classical p-f)",
+            )
+            .range(0.0, 20.0),
+        );
+        let mut vars = Vec::with_capacity(n);
+        for k in 1..=n {
+            let input = |v: &mut Variables, name: String, start: f64, what: &str| {
+                v.real(Spec::input(&name, start, "pu", &format!("POC {k}: {what}")))
+            };
+            let p = input(
+                v,
+                ports::poc_p(k),
+                0.0,
+                "active power the DVPP area delivers into the POC bus, on S_base",
+            );
+            let q = input(
+                v,
+                ports::poc_q(k),
+                0.0,
+                "reactive power the DVPP area delivers into the POC bus, on S_base",
+            );
+            let f = input(v, ports::poc_f(k), 1.0, "frequency, pu of f_nom");
+            input(v, ports::poc_v(k), 1.0, "voltage magnitude (monitoring)");
+            let err_df = v.real(Spec::output(
+                &ports::poc_err_df(k),
+                "pu",
+                &format!(
+                    "POC {k}: measured minus desired frequency deviation (poc[{k}].f - 1) - ref.df"
+                ),
+            ));
+            vars.push(PocVars { p, q, f, err_df });
+        }
+        let dp = v.real(Spec::output(
+            ports::POC_DP,
+            "pu",
+            "input of T_pf: rotated POC power deviation sum_k dp'_poc,k less the rotated set-point change, on S_dvpp",
+        ));
+        Pocs {
+            vars,
+            rot_rx,
+            dp,
+            rot: Rotation::IDENTITY,
+            pq0: vec![(0.0, 0.0); n],
+        }
     }
 }
 
@@ -535,7 +659,7 @@ impl Model for Operator {
         let out = |v: &mut Variables, name: &str, unit: &str, what: &str| {
             v.real(Spec::output(name, unit, what))
         };
-        Ok(Operator {
+        let mut op = Operator {
             config: config.clone(),
             s_base,
             s_dvpp,
@@ -596,13 +720,18 @@ impl Model for Operator {
                 "1",
                 "Σ μ_q over all units as sent (participation: 1)",
             ),
+            pocs: None,
             t_pf: None,
             pcc0: [0.0, 0.0, 1.0],
             p_set0: 0.0,
             sent: None,
             queue: VecDeque::new(),
             warned: Vec::new(),
-        })
+        };
+        if config.pocs > 0 {
+            op.pocs = Some(Pocs::declare(v, config.pocs, config.rot_rx));
+        }
+        Ok(op)
     }
 
     fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
@@ -626,6 +755,15 @@ impl Model for Operator {
             s[r] = 0.0;
         }
         s[self.err_df] = s[self.pcc_f] - 1.0;
+        if let Some(pocs) = &mut self.pocs {
+            pocs.rot = Rotation::from_rx(s[pocs.rot_rx])
+                .map_err(|e| ModelError(format!("parameter 'rot.rx': {e}")))?;
+            pocs.pq0 = pocs.vars.iter().map(|p| (s[p.p], s[p.q])).collect();
+            s[pocs.dp] = 0.0;
+            for p in &pocs.vars {
+                s[p.err_df] = s[p.f] - 1.0;
+            }
+        }
         Ok(())
     }
 
@@ -663,11 +801,23 @@ impl Model for Operator {
         // from the DVPP's summed set point (a cloud that lowers a unit's set point is the same
         // disturbance as a load step of that size).
         let dp_set = self.set_point(s) - self.p_set0;
-        let dp = (s[self.pcc_p] - self.pcc0[0] - dp_set) * s[self.s_base] / s[self.s_dvpp];
+        let dp = match &self.pocs {
+            None => (s[self.pcc_p] - self.pcc0[0] - dp_set) * s[self.s_base] / s[self.s_dvpp],
+            Some(pocs) => {
+                let dp = pocs.rotated_deviation(s, dp_set) * s[self.s_base] / s[self.s_dvpp];
+                s[pocs.dp] = dp;
+                dp
+            }
+        };
         let t_pf = self.t_pf.as_mut().expect("initialized");
         s[self.ref_df] = -t_pf.step(dp, h);
         s[self.ref_dv] = self.desired_dv(s);
         s[self.err_df] = (s[self.pcc_f] - 1.0) - s[self.ref_df];
+        if let Some(pocs) = &self.pocs {
+            for p in &pocs.vars {
+                s[p.err_df] = (s[p.f] - 1.0) - s[self.ref_df];
+            }
+        }
         s[self.err_dv] = (s[self.pcc_v] - self.pcc0[2]) - s[self.ref_dv];
         Ok(())
     }

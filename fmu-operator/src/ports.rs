@@ -62,6 +62,41 @@ pub const ERR_DF: &str = "err.df";
 /// Output: measured minus desired voltage deviation.
 pub const ERR_DV: &str = "err.dv";
 
+/// The variable `name` of point of coupling `k` (1-based): `poc[k].name`.
+fn poc(k: usize, name: &str) -> String {
+    format!("poc[{k}].{name}")
+}
+
+/// Input: active power the DVPP area delivers into POC `k` (1-based).
+pub fn poc_p(k: usize) -> String {
+    poc(k, "p")
+}
+
+/// Input: reactive power the DVPP area delivers into POC `k` (1-based).
+pub fn poc_q(k: usize) -> String {
+    poc(k, "q")
+}
+
+/// Input: frequency at POC `k` (1-based).
+pub fn poc_f(k: usize) -> String {
+    poc(k, "f")
+}
+
+/// Input: voltage magnitude at POC `k` (1-based).
+pub fn poc_v(k: usize) -> String {
+    poc(k, "v")
+}
+
+/// Output: measured minus desired frequency deviation at POC `k` (1-based).
+pub fn poc_err_df(k: usize) -> String {
+    poc(k, "err_df")
+}
+
+/// Output: the rotated POC power deviation `T_pf` acts on.
+pub const POC_DP: &str = "poc.dp";
+/// Parameter: R/X of the DVPP area's lines the POC powers are rotated for.
+pub const ROT_RX: &str = "rot.rx";
+
 /// Parameter: DVPP base, MVA.
 pub const S_DVPP: &str = "S_dvpp";
 /// Parameter: virtual inertia of `T_pf`.
@@ -108,5 +143,24 @@ mod tests {
         check(&der_mu_p(2), Causality::Output);
         check(&der_mu_p_lpf(3, 1), Causality::Output);
         check(&der_mu_p_lpf(3, 2), Causality::Output);
+        // The POCs' variables exist only when the configuration has POCs.
+        assert!(md.variable(&poc_p(1)).is_none() && md.variable(ROT_RX).is_none());
+        let mut with_pocs = Config::<crate::OperatorConfig>::default();
+        with_pocs.model.pocs = 2;
+        with_pocs.model.rot_rx = 1.0;
+        let md = describe::<Operator>(&with_pocs, None).unwrap();
+        let check = |name: &str, causality: Causality| {
+            let v = md.variable(name).unwrap_or_else(|| panic!("no '{name}'"));
+            assert_eq!(v.causality(), causality, "'{name}'");
+        };
+        for k in 1..=2 {
+            for p in [poc_p(k), poc_q(k), poc_f(k), poc_v(k)] {
+                check(&p, Causality::Input);
+            }
+            check(&poc_err_df(k), Causality::Output);
+        }
+        check(POC_DP, Causality::Output);
+        check(ROT_RX, Causality::Parameter);
+        assert!(md.variable(&poc_p(3)).is_none());
     }
 }

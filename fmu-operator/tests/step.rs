@@ -370,3 +370,103 @@ fn bad_configurations_parameters_and_inputs_are_refused() {
     assert_eq!(h.phase(), Phase::Error);
     assert_participation(&mut h, "after the refusal");
 }
+
+/// The case-study operator with `n` POCs and `rot.rx` = `rx`, `values` set, initialized.
+fn operator_with_pocs(n: usize, rx: f64, values: &[(&str, f64)]) -> Harness<Operator> {
+    let mut config = Config::<OperatorConfig>::default();
+    config.model.pocs = n;
+    config.model.rot_rx = rx;
+    let mut h = Harness::<Operator>::with_config(config);
+    h.set_all(values);
+    assert_eq!(h.init(), Status::Ok, "{:#?}", h.log());
+    h
+}
+
+#[test]
+fn with_pocs_ref_df_follows_t_pf_applied_to_the_summed_rotated_poc_power_change() {
+    let (hh, d) = (5.55, 33.33);
+    for rx in [0.0, 1.0, 0.5] {
+        let start = [
+            ("poc[1].p", 0.3),
+            ("poc[1].q", -0.1),
+            ("poc[2].p", 0.2),
+            ("poc[2].q", 0.05),
+            // The PCC moves too: with POCs it is not what ref.df is matched at.
+            ("pcc.p", 0.5),
+        ];
+        let mut h = operator_with_pocs(2, rx, &start);
+        assert_eq!(h.get("rot.rx"), rx);
+        h.step(DT);
+        close(h.get("ref.df"), 0.0, 0.0, "no change, no response");
+        let t0 = h.time();
+        let (dp, dq) = ([0.08, 0.05], [0.03, -0.02]);
+        h.set("poc[1].p", 0.3 + dp[0]);
+        h.set("poc[1].q", -0.1 + dq[0]);
+        h.set("poc[2].p", 0.2 + dp[1]);
+        h.set("poc[2].q", 0.05 + dq[1]);
+        h.set("pcc.p", 0.9);
+        h.set("poc[1].f", 0.9996);
+        h.set("poc[2].f", 0.9997);
+        // p' = (p - rx q)/sqrt(1 + rx²), summed over the POCs, on S_dvpp = 96 MVA.
+        let rotated: f64 = (0..2)
+            .map(|k| (dp[k] - rx * dq[k]) / rx.hypot(1.0))
+            .sum::<f64>()
+            * 100.0
+            / 96.0;
+        for _ in 0..200 {
+            h.step(DT);
+            let t = h.time() - t0;
+            let [ref_df, poc_dp, e1, e2] =
+                h.get_many(["ref.df", "poc.dp", "poc[1].err_df", "poc[2].err_df"]);
+            close(poc_dp, rotated, 1e-14, format_args!("poc.dp, rx = {rx}"));
+            let expected = -rotated / d * (1.0 - (-d * t / hh).exp());
+            close(
+                ref_df,
+                expected,
+                1e-12,
+                format_args!("ref.df, rx = {rx}, t = {t}"),
+            );
+            close(e1, -0.0004 - ref_df, 1e-15, "poc[1].err_df");
+            close(e2, -0.0003 - ref_df, 1e-15, "poc[2].err_df");
+        }
+    }
+}
+
+#[test]
+fn with_pocs_a_set_point_change_is_rotated_like_the_units_set_point() {
+    // A unit lowering its set point by 0.1 pu moves its p' by cos = 1/sqrt(2) of it at R/X = 1;
+    // the POCs' p' moving by as much is no disturbance.
+    let rx = 1.0;
+    let start = [("der[2].p_set", 0.3), ("poc[1].p", 0.4)];
+    let mut h = operator_with_pocs(2, rx, &start);
+    h.step(DT);
+    h.set("der[2].p_set", 0.2);
+    // The area delivers 0.1 pu less through POC 1, its reactive power unchanged.
+    h.set("poc[1].p", 0.3);
+    for _ in 0..50 {
+        h.step(DT);
+        close(h.get("poc.dp"), 0.0, 1e-15, "poc.dp");
+        close(h.get("ref.df"), 0.0, 1e-15, "ref.df");
+    }
+}
+
+#[test]
+fn a_rotation_without_pocs_and_a_bad_ratio_are_refused() {
+    for (pocs, rx, needle) in [
+        (0, 1.0, "pocs = 0"),
+        (2, -1.0, "rot_rx"),
+        (fmu_operator::MAX_POCS + 1, 0.0, "points of coupling"),
+    ] {
+        let mut config = Config::<OperatorConfig>::default();
+        config.model.pocs = pocs;
+        config.model.rot_rx = rx;
+        match Harness::<Operator>::try_with_config(config, false) {
+            Ok(_) => panic!("instantiated with pocs = {pocs}, rot_rx = {rx}"),
+            Err(log) => assert!(
+                log.iter()
+                    .any(|r| r.status == Status::Error && r.message.contains(needle)),
+                "{log:#?}"
+            ),
+        }
+    }
+}

@@ -78,6 +78,11 @@ pub struct DvppSpec {
     /// sources' availability stay), for severe events (the paper's outage).
     #[serde(default)]
     pub rating_scale: Option<f64>,
+    /// Rotational power control (case study III): the R/X ratio of the DVPP area's lines, set
+    /// as every DER's `rot.rx` and, with a grid case that has points of coupling, as the
+    /// operator's `rot.rx` (the POC powers rotated alike); 0 (or absent): classical p-f control.
+    #[serde(default)]
+    pub rot_rx: Option<f64>,
 }
 
 /// DER parameters in power units that a split scales with the part (pu on S_base).
@@ -409,6 +414,7 @@ impl Job<'_, '_> {
             );
             files = vec![file];
         }
+        apply_rx_starts(&mut case, &self.sc.grid.start).map_err(here)?;
         let pf = fmu_grid::Grid::new(&case)
             .map_err(|e| here(format!("grid: {e}")))?
             .outputs();
@@ -435,6 +441,16 @@ impl Job<'_, '_> {
         })
     }
 
+    /// The rotation's R/X from `[dvpp] rot_rx` (None: classical).
+    fn rot_rx(&self) -> Result<Option<f64>, String> {
+        match self.sc.dvpp.as_ref().and_then(|d| d.rot_rx) {
+            Some(rx) if !(rx.is_finite() && rx >= 0.0) => Err(self.here(format!(
+                "[dvpp] rot_rx = {rx}: the R/X ratio is finite and >= 0"
+            ))),
+            rx => Ok(rx),
+        }
+    }
+
     /// `T_des`, shared by the operator and the DERs.
     fn tdes(&self) -> Table {
         let mut tdes = Table::new();
@@ -456,6 +472,9 @@ impl Job<'_, '_> {
             let slot = &grid.case.ders[k];
             let model = der_model(spec, slot.rating_mva);
             let mut start = tdes.clone();
+            if let Some(rx) = self.rot_rx()? {
+                start.insert(der::ROT_RX.into(), real(rx));
+            }
             let forming = slot.kind == fmu_grid::DerKind::GridForming;
             let mode = if forming {
                 fmu_der::GRID_FORMING
@@ -574,6 +593,23 @@ impl Job<'_, '_> {
         ] {
             start.insert(n.into(), real(x));
         }
+        // A DVPP area with points of coupling: ref.df is matched at them, on the POC powers
+        // rotated by the scenario's R/X.
+        let pocs = grid.case.pocs.len();
+        let rot_rx = self.rot_rx()?.unwrap_or(0.0);
+        if pocs > 0 {
+            for (k, o) in grid.pf.poc.iter().enumerate() {
+                for (n, x) in [
+                    (op::poc_p(k + 1), o.p),
+                    (op::poc_q(k + 1), o.q),
+                    (op::poc_f(k + 1), o.f),
+                    (op::poc_v(k + 1), o.v),
+                ] {
+                    start.insert(n, real(x));
+                }
+            }
+            start.insert(op::ROT_RX.into(), real(rot_rx));
+        }
         start.extend(
             self.sc
                 .operator
@@ -582,6 +618,10 @@ impl Job<'_, '_> {
         );
         let mut model = Table::new();
         model.insert("ders".into(), Value::Array(entries));
+        if pocs > 0 {
+            model.insert("pocs".into(), Value::Integer(pocs as i64));
+            model.insert("rot_rx".into(), real(rot_rx));
+        }
         let md = self.build(OPERATOR_FMU, OPERATOR, model, &start, Vec::new())?;
         Ok(Unit {
             name: OPERATOR.into(),
@@ -589,6 +629,35 @@ impl Job<'_, '_> {
             start,
         })
     }
+}
+
+/// The grid's R/X start values (`mv.rx`, `mv.line[k].rx` > 0) applied to `case`, so that the
+/// power flow the other units start from is the one the grid FMU solves at initialization.
+fn apply_rx_starts(case: &mut fmu_grid::Case, start: &Table) -> Result<(), String> {
+    let value = |key: &str| -> Result<Option<f64>, String> {
+        match start.get(key) {
+            None => Ok(None),
+            Some(Value::Float(x)) => Ok(Some(*x)),
+            Some(Value::Integer(x)) => Ok(Some(*x as f64)),
+            Some(v) => Err(format!("[grid.start] '{key}' = {v}: expected a number")),
+        }
+    };
+    let lines = case.mv_line_indices();
+    if let Some(rx) = value(grid::MV_RX)? {
+        case.mv
+            .as_mut()
+            .ok_or(format!(
+                "[grid.start] '{}': the case has no [mv]",
+                grid::MV_RX
+            ))?
+            .rx = rx;
+    }
+    for (k, &i) in lines.iter().enumerate() {
+        if let Some(rx) = value(&grid::mv_line_rx(k + 1))? {
+            case.lines[i].rx = (rx > 0.0).then_some(rx);
+        }
+    }
+    Ok(())
 }
 
 /// One connection: from (component, output) to (component, input).
@@ -675,13 +744,28 @@ fn pcc_measurements() -> Vec<Wire> {
     .collect()
 }
 
+/// Grid → operator: each point of coupling's measurements.
+fn poc_measurements(pocs: usize) -> Vec<Wire> {
+    (1..=pocs)
+        .flat_map(|k| {
+            [
+                (grid::poc_p(k), op::poc_p(k)),
+                (grid::poc_q(k), op::poc_q(k)),
+                (grid::poc_f(k), op::poc_f(k)),
+                (grid::poc_v(k), op::poc_v(k)),
+            ]
+        })
+        .map(|(from, to)| wire(GRID, &from, OPERATOR, &to))
+        .collect()
+}
+
 /// Rules per DER of every system, in the order of the connections.
 const DER_RULES: &[DerRule] = &[slot_measurements, slot_drive];
 /// Rules per DER of a system with an operator, after those of `DER_RULES`.
 const OPERATOR_RULES: &[DerRule] = &[operator_measurements, operator_gains];
 
-/// Every connection of the system.
-fn wiring(ders: &[DerUnit], operator: bool) -> Vec<Wire> {
+/// Every connection of the system (`pocs`: the grid's points of coupling).
+fn wiring(ders: &[DerUnit], operator: bool, pocs: usize) -> Vec<Wire> {
     let per_der = |rules: &[DerRule]| -> Vec<Wire> {
         ders.iter()
             .flat_map(|d| rules.iter().flat_map(move |rule| rule(d)))
@@ -691,6 +775,7 @@ fn wiring(ders: &[DerUnit], operator: bool) -> Vec<Wire> {
     if operator {
         wires.extend(per_der(OPERATOR_RULES));
         wires.extend(pcc_measurements());
+        wires.extend(poc_measurements(pocs));
     }
     wires
 }
@@ -783,7 +868,7 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
     } else {
         None
     };
-    let wires = wiring(&ders, operator.is_some());
+    let wires = wiring(&ders, operator.is_some(), grid.case.pocs.len());
     let mut units = vec![grid.unit];
     units.extend(ders.into_iter().map(|d| d.unit));
     units.extend(operator);
@@ -925,6 +1010,43 @@ mod tests {
         // the complement; 4 PCC measurements.
         assert_wired(&dir.join("case1_load.toml"), 3 * (11 + 3) + 2 + 2 + 4);
         assert_wired(&dir.join("ieee9.toml"), 0);
+        // Case study III: as case study I, and 4 measurements of each of the 2 POCs.
+        for name in [
+            "case3_ext_pf",
+            "case3_ext_rot",
+            "case3_int_pf",
+            "case3_int_rot",
+        ] {
+            assert_wired(
+                &dir.join(format!("{name}.toml")),
+                3 * (11 + 3) + 2 + 2 + 4 + 2 * 4,
+            );
+        }
+    }
+
+    #[test]
+    fn rot_rx_reaches_every_der_and_the_operator_of_a_poc_case() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        for (name, rx) in [("case3_ext_rot", 1.0), ("case3_int_pf", 0.0)] {
+            let (system, mds) = bundled(&dir.join(format!("{name}.toml")));
+            let bound = |c: &str, n: &str| {
+                system
+                    .components
+                    .iter()
+                    .find(|x| x.name == c)
+                    .and_then(|x| x.parameters.iter().find(|p| p.name == n))
+                    .map(|p| p.value.clone())
+            };
+            for c in ["wind", "pv", "bess", OPERATOR] {
+                assert_eq!(bound(c, "rot.rx"), Some(ssp::Value::Real(rx)), "{name} {c}");
+                assert_eq!(start_of(&mds[c], "rot.rx"), Some(rx), "{name} {c}");
+            }
+            assert!(mds[OPERATOR].variable(&op::poc_err_df(2)).is_some());
+            assert!(mds[OPERATOR].variable(&op::poc_err_df(3)).is_none());
+        }
+        // Without POCs the operator has none of their variables.
+        let (_, mds) = bundled(&dir.join("case1_load.toml"));
+        assert!(mds[OPERATOR].variable(op::ROT_RX).is_none());
     }
 
     #[test]

@@ -247,6 +247,42 @@ pub(crate) struct PocRt {
     pub tf: f64,
 }
 
+/// The buses behind the POCs: those reached from each POC branch's far end (the end that is not
+/// the POC bus) without crossing a POC branch.
+fn area_buses(n: usize, branches: &[BranchData], pocs: &[PocRt]) -> Vec<usize> {
+    let poc_branch = |k: usize| pocs.iter().any(|p| p.branches.contains(&k));
+    let mut inside = vec![false; n];
+    let mut stack: Vec<usize> = pocs
+        .iter()
+        .flat_map(|p| {
+            p.branches.iter().map(move |&k| {
+                let b = &branches[k];
+                if b.from == p.bus {
+                    b.to
+                } else {
+                    b.from
+                }
+            })
+        })
+        .collect();
+    while let Some(i) = stack.pop() {
+        if std::mem::replace(&mut inside[i], true) {
+            continue;
+        }
+        for (k, b) in branches.iter().enumerate() {
+            if poc_branch(k) {
+                continue;
+            }
+            if b.from == i && !inside[b.to] {
+                stack.push(b.to);
+            } else if b.to == i && !inside[b.from] {
+                stack.push(b.from);
+            }
+        }
+    }
+    (0..n).filter(|&i| inside[i]).collect()
+}
+
 /// Per-machine outputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
 pub struct MachineOutput {
@@ -282,6 +318,9 @@ pub struct Outputs {
     /// Per point of coupling (case `[[poc]]`): the power its branches deliver into its bus
     /// (positive: the area feeds the grid), its bus voltage, frequency and angle.
     pub poc: Vec<PccOutput>,
+    /// Active and reactive power the loads inside the POC area draw (0 without POCs), pu.
+    pub area_p_load: f64,
+    pub area_q_load: f64,
     /// Inertia-weighted mean speed of the in-service machines, pu (PCC frequency if none).
     pub coi_f: f64,
     pub sg: Vec<MachineOutput>,
@@ -365,6 +404,9 @@ pub struct Grid {
     pub(crate) pcc_branches: Vec<(usize, usize)>,
     pub(crate) pcc_tf: f64,
     pub(crate) pocs: Vec<PocRt>,
+    /// Buses of the area behind the POCs (reached from the POC branches' far ends without
+    /// crossing them); empty without POCs.
+    pub(crate) area: Vec<usize>,
     /// Index in `x` of the PCC angle filter state; the POC filters follow it.
     pub(crate) pcc_state: usize,
     /// State vector: per machine its states (see `MachineRt::at`), then the PCC angle filter,
@@ -444,6 +486,7 @@ impl Grid {
             })
             .collect();
         let poc_angle = pocs.iter().map(|p| v[p.bus].arg()).collect();
+        let area = area_buses(n, &branches, &pocs);
         // DER slots
         let mut ders = Vec::new();
         for (k, d) in case.ders.iter().enumerate() {
@@ -547,6 +590,7 @@ impl Grid {
             pcc_branches,
             pcc_tf,
             pocs,
+            area,
             pcc_state,
             x,
             t: 0.0,
@@ -852,6 +896,18 @@ impl Grid {
                 f: 1.0 + (th - self.x[self.pcc_state + 1 + k]) / (p.tf * self.wb),
                 angle: th,
             });
+        }
+        for &i in &self.area {
+            let vm2 = self.v[i].norm_sqr();
+            let s = self.load_s[i];
+            let sc = if vm2.sqrt() >= CONST_POWER_V_MIN {
+                s
+            } else {
+                s * vm2 / (CONST_POWER_V_MIN * CONST_POWER_V_MIN)
+            };
+            let sl = self.load_y[i].conj() * vm2 + sc;
+            out.area_p_load += sl.re;
+            out.area_q_load += sl.im;
         }
         out.coi_f = if hs > 0.0 { hw / hs } else { f };
         out.gen_p = gen;

@@ -189,6 +189,8 @@ pub struct GridFmu {
     pcc: [Real; 4],
     /// Per point of coupling: p, q, v, f.
     pocs: Vec<[Real; 4]>,
+    /// `area.p_load`, `area.q_load` (cases with POCs).
+    area_load: Option<[Real; 2]>,
     /// The R/X parameters (cases with an `[mv]` table).
     rx: Option<RxVars>,
     /// Per slot, the input values (θ, E or p_ref, q_ref) the FMU itself put in the store (the
@@ -245,6 +247,10 @@ impl GridFmu {
             s[vq] = p.q;
             s[vv] = p.v;
             s[vf] = p.f;
+        }
+        if let Some([p, q]) = self.area_load {
+            s[p] = o.area_p_load;
+            s[q] = o.area_q_load;
         }
         s[self.coi_f] = o.coi_f;
         s[self.energized] = self.grid.energized();
@@ -596,6 +602,20 @@ impl Model for GridFmu {
                  network solver tolerance)",
             )),
         ];
+        let area_load = (!case.pocs.is_empty()).then(|| {
+            [
+                v.real(Spec::output(
+                    ports::AREA_P_LOAD,
+                    "pu",
+                    "active power the loads inside the area behind the points of coupling draw, on S_base (an operator adds its change to the POC powers: a load step inside the area is not the DVPP's response)",
+                )),
+                v.real(Spec::output(
+                    ports::AREA_Q_LOAD,
+                    "pu",
+                    "reactive power the loads inside the area behind the points of coupling draw, on S_base",
+                )),
+            ]
+        });
         let pocs = case
             .pocs
             .iter()
@@ -681,6 +701,7 @@ impl Model for GridFmu {
             machines,
             pcc,
             pocs,
+            area_load,
             rx,
             input_auto,
             coi_f,

@@ -95,6 +95,11 @@ pub fn poc_f(k: usize) -> String {
     poc(k, "f")
 }
 
+/// Output (cases with POCs): active power the loads inside the POC area draw.
+pub const AREA_P_LOAD: &str = "area.p_load";
+/// Output (cases with POCs): reactive power the loads inside the POC area draw.
+pub const AREA_Q_LOAD: &str = "area.q_load";
+
 /// Parameter: homogeneous R/X ratio of the case's `[mv]` lines.
 pub const MV_RX: &str = "mv.rx";
 

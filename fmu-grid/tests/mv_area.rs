@@ -355,3 +355,34 @@ fn bad_poc_and_rx_data_are_refused_by_name() {
         assert!(e.contains(what), "{what}: {e}");
     }
 }
+
+/// The area's load output counts the MV loads only: 44.7 MW at the power flow, 20 MW more
+/// after a constant-power step at d5, unchanged by a step at bus 4 (outside the area).
+#[test]
+fn the_area_load_counts_the_loads_behind_the_pocs() {
+    for (bus, inside) in [(105, true), (4, false)] {
+        let mut g = Grid::new(&mv_case(1.0)).unwrap();
+        let p0 = g.outputs().area_p_load;
+        g.add_event(Event::LoadStep {
+            time: 0.1,
+            bus,
+            dp_mw: 20.0,
+            dq_mvar: 0.0,
+            model: LoadModel::ConstantPower,
+        })
+        .unwrap();
+        for _ in 0..50 {
+            let t = g.time();
+            g.step(t, 0.01).unwrap();
+        }
+        let dp = g.outputs().area_p_load - p0;
+        println!(
+            "area load {:.3} MW at the power flow; after 20 MW at bus {bus}: {:+.4} MW",
+            p0 * 100.0,
+            dp * 100.0
+        );
+        assert!((p0 * 100.0 - 44.7).abs() < 0.05, "area load {p0}");
+        let want = if inside { 0.2 } else { 0.0 };
+        assert!((dp - want).abs() < 1e-9, "bus {bus}: {dp}");
+    }
+}

@@ -20,7 +20,9 @@
 //! A DVPP area with several points of coupling (case study III, `[model] pocs = n`): the desired
 //! frequency deviation is matched at the POCs, `ref.df = -T_pf Σ_k Δp'_poc,k`, with `Δp'` the
 //! POC power deviation rotated by the lines' R/X (parameter `rot.rx`, as the DERs'; 0: plain
-//! `Δp`), and every POC reports its own matching error `poc[k].err_df`.
+//! `Δp`), and every POC reports its own matching error `poc[k].err_df`. The change of what the
+//! area's own loads draw (inputs `area.p_load`, `area.q_load`) is added back to `Σ_k Δp_poc,k`:
+//! a load step inside the area is a disturbance, not the DVPP's response.
 
 pub mod ports;
 
@@ -168,6 +170,9 @@ struct Pocs {
     rot: Rotation,
     /// Every POC's p, q at initialization.
     pq0: Vec<(f64, f64)>,
+    /// Inputs `area.p_load`, `area.q_load` and their values at initialization.
+    load: (Real, Real),
+    load0: (f64, f64),
 }
 
 /// Handles of one DER's variables.
@@ -437,7 +442,14 @@ impl Pocs {
             .zip(&self.pq0)
             .map(|(p, &(p0, q0))| self.rot.rotate(s[p.p] - p0, s[p.q] - q0).0)
             .sum();
-        sum - self.rot.rotate(dp_set, 0.0).0
+        // What the area's loads draw more is not the DVPP's response: added back, the sum is
+        // what the units deliver net of the area's losses.
+        let (lp, lq) = self.load;
+        let load = self
+            .rot
+            .rotate(s[lp] - self.load0.0, s[lq] - self.load0.1)
+            .0;
+        sum + load - self.rot.rotate(dp_set, 0.0).0
     }
 
     /// Declare the variables of `n` POCs and the rotation (start `rx`).
@@ -479,10 +491,24 @@ impl Pocs {
             ));
             vars.push(PocVars { p, q, f, err_df });
         }
+        let load = (
+            v.real(Spec::input(
+                ports::AREA_P_LOAD,
+                0.0,
+                "pu",
+                "active power the loads inside the DVPP area draw, on S_base (its change is added to the POC powers: a load step inside the area is not the DVPP's response)",
+            )),
+            v.real(Spec::input(
+                ports::AREA_Q_LOAD,
+                0.0,
+                "pu",
+                "reactive power the loads inside the DVPP area draw, on S_base",
+            )),
+        );
         let dp = v.real(Spec::output(
             ports::POC_DP,
             "pu",
-            "input of T_pf: rotated POC power deviation sum_k dp'_poc,k less the rotated set-point change, on S_dvpp",
+            "input of T_pf: rotated POC power deviation sum_k dp'_poc,k plus the rotated change of the area's load, less the rotated set-point change, on S_dvpp",
         ));
         Pocs {
             vars,
@@ -490,6 +516,8 @@ impl Pocs {
             dp,
             rot: Rotation::IDENTITY,
             pq0: vec![(0.0, 0.0); n],
+            load,
+            load0: (0.0, 0.0),
         }
     }
 }
@@ -759,6 +787,7 @@ impl Model for Operator {
             pocs.rot = Rotation::from_rx(s[pocs.rot_rx])
                 .map_err(|e| ModelError(format!("parameter 'rot.rx': {e}")))?;
             pocs.pq0 = pocs.vars.iter().map(|p| (s[p.p], s[p.q])).collect();
+            pocs.load0 = (s[pocs.load.0], s[pocs.load.1]);
             s[pocs.dp] = 0.0;
             for p in &pocs.vars {
                 s[p.err_df] = s[p.f] - 1.0;

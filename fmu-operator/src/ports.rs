@@ -92,6 +92,12 @@ pub fn poc_err_df(k: usize) -> String {
     poc(k, "err_df")
 }
 
+/// Input (with POCs): active power the loads inside the DVPP area draw (the grid's output of
+/// the same name).
+pub const AREA_P_LOAD: &str = "area.p_load";
+/// Input (with POCs): reactive power the loads inside the DVPP area draw.
+pub const AREA_Q_LOAD: &str = "area.q_load";
+
 /// Output: the rotated POC power deviation `T_pf` acts on.
 pub const POC_DP: &str = "poc.dp";
 /// Parameter: R/X of the DVPP area's lines the POC powers are rotated for.
@@ -160,6 +166,8 @@ mod tests {
             check(&poc_err_df(k), Causality::Output);
         }
         check(POC_DP, Causality::Output);
+        check(AREA_P_LOAD, Causality::Input);
+        check(AREA_Q_LOAD, Causality::Input);
         check(ROT_RX, Causality::Parameter);
         assert!(md.variable(&poc_p(3)).is_none());
     }

@@ -277,7 +277,7 @@ fn response_figure(runs: &[Run]) -> Figure {
 /// The Monte Carlo envelope (dotted: lowest and highest over the draws) around the R/X = 1
 /// response, per disturbance and POC.
 fn envelope_figure(runs: &[Run]) -> Figure {
-    let mut fig = Figure::new("Case study III: R/X Monte Carlo, rotational control (envelope over the draws dotted, R/X = 1 solid, desired dashed)");
+    let mut fig = Figure::new("Case study III: random R/X per MV line, rotational control");
     for name in DRAWN {
         let Some(nominal) = runs.iter().find(|r| r.scenario == name && r.draw == 0) else {
             continue;
@@ -367,6 +367,9 @@ pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
         }
     }
     let dist = root.join("dist");
+    // The packages read (each unpacked once) live until every run is done: the runs' systems
+    // refer to their unpacked FMUs.
+    let mut bases = Vec::new();
     let mut jobs = Vec::new();
     let mut rx_draws: Vec<Vec<f64>> = Vec::new();
     for (name, _, _) in NOMINAL {
@@ -402,12 +405,13 @@ pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
             }
         }
         jobs.push((
-            pkg,
+            pkg.with_system(pkg.system.clone()),
             Run {
                 scenario: name.into(),
                 ..Run::default()
             },
         ));
+        bases.push(pkg);
     }
     println!(
         "case3: {} runs (4 scenarios at R/X = 1, {draws} R/X draws each for {DRAWN:?}, seed {seed})",
@@ -415,6 +419,7 @@ pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
     );
     let started = std::time::Instant::now();
     let runs = run_all(jobs);
+    drop(bases);
     let wall = started.elapsed().as_secs_f64();
     let results = root.join("results");
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;

@@ -609,6 +609,8 @@ impl Job<'_, '_> {
                 }
             }
             start.insert(op::ROT_RX.into(), real(rot_rx));
+            start.insert(op::AREA_P_LOAD.into(), real(grid.pf.area_p_load));
+            start.insert(op::AREA_Q_LOAD.into(), real(grid.pf.area_q_load));
         }
         start.extend(
             self.sc
@@ -754,6 +756,14 @@ fn poc_measurements(pocs: usize) -> Vec<Wire> {
                 (grid::poc_f(k), op::poc_f(k)),
                 (grid::poc_v(k), op::poc_v(k)),
             ]
+        })
+        .chain(if pocs > 0 {
+            vec![
+                (grid::AREA_P_LOAD.to_string(), op::AREA_P_LOAD.to_string()),
+                (grid::AREA_Q_LOAD.to_string(), op::AREA_Q_LOAD.to_string()),
+            ]
+        } else {
+            Vec::new()
         })
         .map(|(from, to)| wire(GRID, &from, OPERATOR, &to))
         .collect()
@@ -1019,7 +1029,7 @@ mod tests {
         ] {
             assert_wired(
                 &dir.join(format!("{name}.toml")),
-                3 * (11 + 3) + 2 + 2 + 4 + 2 * 4,
+                3 * (11 + 3) + 2 + 2 + 4 + 2 * 4 + 2,
             );
         }
     }

@@ -1,5 +1,5 @@
 //! Scaling out (docs/scaling.md): case1_load as a HELICS federation on loopback (one federate
-//! per component, or grouped) writes the CSV of our Jacobi master bit for bit; and a system of
+//! per component, or grouped, also out of SSD order) writes the CSV of our Jacobi master bit for bit; and a system of
 //! 20 units as 20 federates. Skipped, with the reason printed, when libhelics is not installed
 //! (`cargo xtask test` installs the `helics` wheel into target/venv).
 
@@ -130,6 +130,8 @@ fn case1_load_as_a_federation_gives_the_masters_results_bit_for_bit() {
     for (groups, n) in [
         (None, 5),
         (Some("grid,operator;wind,pv,bess"), 2),
+        // Groups out of SSD order (wind alone): the merge restores the master's columns.
+        (Some("bess,grid;pv,operator"), 3),
         (Some("grid,operator,wind,pv,bess"), 1),
     ] {
         let out = d.join(format!("federation{n}.csv"));

@@ -220,26 +220,26 @@ pub fn run_on(
 }
 
 /// Variable index (1-based, as in `ModelStructure`) to value reference and type.
-struct Var {
-    index: u32,
-    vr: u32,
-    ty: BaseType,
+pub(crate) struct Var {
+    pub(crate) index: u32,
+    pub(crate) vr: u32,
+    pub(crate) ty: BaseType,
 }
 
 /// One loaded component.
-struct Unit {
-    name: String,
-    inst: Instance,
+pub(crate) struct Unit {
+    pub(crate) name: String,
+    pub(crate) inst: Instance,
     /// Keep the unit's warnings without printing them (runs of a sweep).
     quiet: bool,
     /// Variables read after a step (output connectors and connection starts), recorded.
-    reads: Vec<Var>,
-    values: Vec<f64>,
+    pub(crate) reads: Vec<Var>,
+    pub(crate) values: Vec<f64>,
     /// `values` is current (no step and no input change since it was read).
-    fresh: bool,
+    pub(crate) fresh: bool,
     /// Inputs to set before the next read or step: Reals (value references, values), others.
-    pending_real: (Vec<u32>, Vec<f64>),
-    pending_other: Vec<(u32, BaseType, f64)>,
+    pub(crate) pending_real: (Vec<u32>, Vec<f64>),
+    pub(crate) pending_other: Vec<(u32, BaseType, f64)>,
     /// The Real, Integer and Boolean entries of `reads` (fixed at load) and buffers for them:
     /// one call per type reads them all.
     real_vrs: Vec<u32>,
@@ -254,47 +254,47 @@ struct Unit {
     last_message: Option<String>,
     /// The status of the last `fmi2DoStep` of [`Coupling::step_all`], and of the reads that
     /// followed it on the same thread (checked in unit order after the round).
-    stepped: Status,
-    fetched: Option<(Status, &'static str)>,
+    pub(crate) stepped: Status,
+    pub(crate) fetched: Option<(Status, &'static str)>,
 }
 
 /// One connection, resolved.
-struct Link {
-    src: usize,
-    slot: usize,
-    dst: usize,
-    dst_index: u32,
-    dst_vr: u32,
-    ty: BaseType,
-    factor: f64,
-    offset: f64,
-    last: Option<f64>,
-    label: String,
+pub(crate) struct Link {
+    pub(crate) src: usize,
+    pub(crate) slot: usize,
+    pub(crate) dst: usize,
+    pub(crate) dst_index: u32,
+    pub(crate) dst_vr: u32,
+    pub(crate) ty: BaseType,
+    pub(crate) factor: f64,
+    pub(crate) offset: f64,
+    pub(crate) last: Option<f64>,
+    pub(crate) label: String,
     /// Whether the destination input feeds through to an output of its unit, per phase
     /// (initialization, step): setting it makes the unit's outputs stale.
-    feeds: [bool; 2],
+    pub(crate) feeds: [bool; 2],
 }
 
 #[derive(Clone, Copy, PartialEq)]
-enum Phase {
+pub(crate) enum Phase {
     Init,
     Step,
 }
 
 /// A loaded system, ready to simulate once.
 pub struct System {
-    units: Vec<Unit>,
-    links: Vec<Link>,
-    parameters: Vec<(usize, String, Var, Value)>,
-    init_order: Vec<usize>,
-    step_order: Vec<usize>,
+    pub(crate) units: Vec<Unit>,
+    pub(crate) links: Vec<Link>,
+    pub(crate) parameters: Vec<(usize, String, Var, Value)>,
+    pub(crate) init_order: Vec<usize>,
+    pub(crate) step_order: Vec<usize>,
     unit_order: Vec<usize>,
     start: f64,
     stop: Option<f64>,
     step: Option<f64>,
     name: String,
     /// The current communication point: time, then every unit's recorded outputs.
-    row: Vec<f64>,
+    pub(crate) row: Vec<f64>,
     /// Warnings so far (loops, FMU warnings).
     pub warnings: Vec<String>,
     /// Threads asked for (see [`System::set_threads`]), and the pool of a run using more than 1.
@@ -460,7 +460,7 @@ impl Unit {
     }
 
     /// Report an FMI call's status: `Err` (naming the unit and its last message) above warning.
-    fn check(
+    pub(crate) fn check(
         &mut self,
         what: impl FnOnce() -> String,
         s: Status,
@@ -519,7 +519,7 @@ impl Unit {
     }
 
     /// Set the pending inputs (the Reals in one call).
-    fn flush(&mut self, warnings: &mut Vec<String>) -> Result<(), Error> {
+    pub(crate) fn flush(&mut self, warnings: &mut Vec<String>) -> Result<(), Error> {
         if !self.pending_real.0.is_empty() {
             let s = self
                 .inst
@@ -535,7 +535,7 @@ impl Unit {
         Ok(())
     }
 
-    fn push(&mut self, vr: u32, ty: BaseType, v: f64) {
+    pub(crate) fn push(&mut self, vr: u32, ty: BaseType, v: f64) {
         if ty == BaseType::Real {
             self.pending_real.0.push(vr);
             self.pending_real.1.push(v);
@@ -545,7 +545,7 @@ impl Unit {
     }
 
     /// Read every recorded variable (after setting the pending inputs).
-    fn read(&mut self, warnings: &mut Vec<String>) -> Result<(), Error> {
+    pub(crate) fn read(&mut self, warnings: &mut Vec<String>) -> Result<(), Error> {
         self.flush(warnings)?;
         let (s, what) = self.fetch();
         self.check(|| what.into(), s, warnings)?;
@@ -555,7 +555,7 @@ impl Unit {
 
     /// Get every recorded variable into `values` (one call per type), without setting inputs
     /// or looking at the log: the worst status and its call (the first above a warning stops).
-    fn fetch(&mut self) -> (Status, &'static str) {
+    pub(crate) fn fetch(&mut self) -> (Status, &'static str) {
         let mut worst = (Status::Ok, "fmi2GetReal");
         let s = self.inst.get_real(&self.real_vrs, &mut self.buf);
         if s > worst.0 {
@@ -963,7 +963,7 @@ impl System {
     }
 
     /// Read every unit's recorded outputs into the row buffer (time first).
-    fn sample(&mut self, t: i64) -> Result<(), Error> {
+    pub(crate) fn sample(&mut self, t: i64) -> Result<(), Error> {
         self.row.clear();
         self.row.push(seconds(t));
         for u in &mut self.units {
@@ -989,7 +989,7 @@ impl System {
     }
 
     /// The experiment in ticks: start, stop and step from `opts` or the system, each checked.
-    fn experiment(&self, opts: &Options) -> Result<(i64, i64, i64), Error> {
+    pub(crate) fn experiment(&self, opts: &Options) -> Result<(i64, i64, i64), Error> {
         let name = &self.name;
         let stop_s = opts.stop.or(self.stop).ok_or_else(|| {
             Error(format!(
@@ -1259,7 +1259,12 @@ struct Tally {
 
 /// The statuses of a [`Coupling::step_all`] round, in unit order: every step, then every read
 /// (the order in which the steps and then the exchange would meet them).
-fn checked(units: &mut [Unit], warnings: &mut Vec<String>, ts: f64, hs: f64) -> Result<(), Error> {
+pub(crate) fn checked(
+    units: &mut [Unit],
+    warnings: &mut Vec<String>,
+    ts: f64,
+    hs: f64,
+) -> Result<(), Error> {
     for u in units.iter_mut() {
         let s = std::mem::replace(&mut u.stepped, Status::Ok);
         u.check(|| format!("fmi2DoStep({ts}, {hs})"), s, warnings)?;

@@ -21,6 +21,7 @@ const PYTHON_PACKAGES: &[&str] = &[
     "fmpy==0.3.32",
     "libcosimpy==0.0.6",
     "pytest==8.4.2",
+    "helics==3.6.1",
     "dpsim==1.4.0; sys_platform == 'linux' and platform_machine == 'x86_64' and python_version >= '3.10' and python_version < '3.14'",
 ];
 

@@ -1,5 +1,6 @@
 //! `cosim`: run an SSP system (or one FMU on its own) headless, streaming the results to CSV.
 
+use dvpp_cosim::federate::{self, FederateOptions, FederationOptions};
 use dvpp_cosim::master::{
     self, partial_path, CsvWriter, End, Execution, Observer, Options, Progress, Recorder, Scheme,
 };
@@ -29,7 +30,19 @@ own resources. Rows go to FILE.csv.partial, renamed to FILE.csv when the run com
 that fails or is stopped by SIGINT/SIGTERM (at the next communication point) leaves every
 complete row in FILE.csv.partial and exits non-zero (1 on an error, 128 + the signal's number
 when interrupted). --no-csv records nothing (benchmarks). --plot draws the --signals (default:
-the first six columns) against time as an SVG figure; it keeps the results in memory.";
+the first six columns) against time as an SVG figure; it keeps the results in memory.
+
+       cosim federate SYSTEM.ssp --component NAME[,NAME...] --broker HOST[:PORT] [--name FED]
+             [--out FILE.csv] [--stop T] [--step H] [--helics-lib PATH] [--core zmq|tcp|...]
+       cosim federation SYSTEM.ssp [--groups a,b;c;d] [--out FILE.csv] [--stop T] [--step H]
+             [--helics-lib PATH] [--core zmq|tcp|...]
+
+`federate` runs the listed components as one HELICS value federate (zmq core by default) with the results
+of --algorithm jacobi bit for bit, writing their outputs to FILE.csv; `federation` runs the whole
+system so on this machine (helics_broker on 127.0.0.1, one federate process per group, by default
+one per component), merges the CSVs (default <system name>.csv) and prints the commands for
+several machines. libhelics (the `helics` Python wheel): --helics-lib, $HELICS_LIB, or the test
+venv target/venv (docs/scaling.md).";
 
 #[derive(Default)]
 struct Args {
@@ -142,6 +155,12 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // A federate blocks in HELICS calls: SIGINT/SIGTERM keep their default (end the process).
+    match std::env::args().nth(1).as_deref() {
+        Some("federate") => return federate_main(),
+        Some("federation") => return federation_main(),
+        _ => {}
+    }
     interrupt::install();
     let mut args = match parse() {
         Ok(a) => a,
@@ -247,4 +266,125 @@ fn main() -> ExitCode {
         println!("plot -> {}", path.display());
     }
     ExitCode::SUCCESS
+}
+
+/// The options of `cosim federate` / `cosim federation` (after the subcommand).
+fn parse_federated() -> Result<(FederateOptions, FederationOptions), String> {
+    let mut fed = FederateOptions::default();
+    let mut all = FederationOptions::default();
+    let mut it = std::env::args().skip(2);
+    let number = |flag: &str, v: Option<String>| -> Result<f64, String> {
+        let v = v.ok_or(format!("{flag} needs a value"))?;
+        v.parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite() && *x > 0.0)
+            .ok_or(format!("{flag} {v}: not a positive number"))
+    };
+    let mut system = None;
+    while let Some(a) = it.next() {
+        let mut value = |what: &str| it.next().ok_or(format!("{a} needs {what}"));
+        match a.as_str() {
+            "--component" => {
+                fed.components = value("a list of components")?
+                    .split(',')
+                    .map(str::trim)
+                    .filter(|c| !c.is_empty())
+                    .map(String::from)
+                    .collect()
+            }
+            "--broker" => fed.broker = value("an address")?,
+            "--name" => fed.name = Some(value("a name")?),
+            "--out" => fed.out = Some(value("a file")?.into()),
+            "--helics-lib" => fed.helics_lib = Some(value("a path")?.into()),
+            "--groups" => all.groups = Some(value("groups like a,b;c")?),
+            "--core" => fed.core = Some(value("a HELICS core type")?),
+            "--stop" => fed.opts.stop = Some(number("--stop", it.next())?),
+            "--step" => fed.opts.step = Some(number("--step", it.next())?),
+            "-h" | "--help" => return Err(USAGE.into()),
+            s if s.starts_with('-') => return Err(format!("unknown option {s}\n\n{USAGE}")),
+            _ if system.is_none() => system = Some(PathBuf::from(a)),
+            _ => return Err(format!("unexpected argument {a}\n\n{USAGE}")),
+        }
+    }
+    fed.system = system.ok_or(USAGE)?;
+    all.system = fed.system.clone();
+    all.out = fed.out.clone();
+    all.helics_lib = fed.helics_lib.clone();
+    all.opts = fed.opts.clone();
+    all.core = fed.core.clone();
+    Ok((fed, all))
+}
+
+fn federate_main() -> ExitCode {
+    let fed = match parse_federated() {
+        Ok((f, _)) if f.components.is_empty() || f.broker.is_empty() => {
+            eprintln!("cosim federate: --component and --broker are required\n\n{USAGE}");
+            return ExitCode::FAILURE;
+        }
+        Ok((f, _)) => f,
+        Err(e) => {
+            eprintln!("cosim: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match federate::run_federate(&fed) {
+        Ok(r) => {
+            let per_step = r.run_time.as_secs_f64() * 1e6 / r.steps.max(1) as f64;
+            println!(
+                "{}: loaded in {:.3} s; {} steps in {:.3} s ({per_step:.1} us per step; {} HELICS time grants per step, {} initialization passes)",
+                r.name,
+                r.load_time.as_secs_f64(),
+                r.steps,
+                r.run_time.as_secs_f64(),
+                r.step_rounds,
+                r.init_passes
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("cosim federate: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn federation_main() -> ExitCode {
+    let all = match parse_federated() {
+        Ok((_, a)) => a,
+        Err(e) => {
+            eprintln!("cosim: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    let exe = match std::env::current_exe() {
+        Ok(e) => e,
+        Err(e) => {
+            eprintln!("cosim federation: cannot find the cosim binary: {e}");
+            return ExitCode::FAILURE;
+        }
+    };
+    match federate::run_federation(&all, &exe) {
+        Ok(r) => {
+            println!("to run it on several machines (BROKER_HOST: the broker's address):");
+            for c in &r.commands {
+                println!("  {c}");
+            }
+            for s in &r.summaries {
+                println!("{s}");
+            }
+            let steps = r.rows.saturating_sub(1).max(1);
+            println!(
+                "federation of {} federates: {} rows in {:.3} s wall ({:.1} us per step, broker and start-up included)",
+                r.federates.len(),
+                r.rows,
+                r.wall.as_secs_f64(),
+                r.wall.as_secs_f64() * 1e6 / steps as f64
+            );
+            ExitCode::SUCCESS
+        }
+        Err(e) => {
+            eprintln!("cosim federation: {e}");
+            ExitCode::FAILURE
+        }
+    }
 }

@@ -1,0 +1,1267 @@
+//! Scaling out: some components of an SSP system run as one HELICS value federate (libhelics loaded at run time), with the results of the Jacobi master bit for bit; and a launcher of a whole federation on one machine.
+//!
+//! Every federate loads the whole system (for its connections and the units' dependencies) but
+//! initializes and steps only its own components. The master's exchange walks the connections in
+//! dependency order (a unit's output is read after the inputs it depends on were set); a
+//! federation walks the same order, split into *rounds*: a connection between two components is
+//! read by its source in some round and set at its destination in a later one (the value goes
+//! through HELICS, published as `component.variable`), so every unit sees the calls of the master
+//! in the same order with the same values. The schedule of rounds depends on the system only (not
+//! on how components are grouped into federates): every federate computes the same one, and
+//! HELICS time counts rounds (1 s per round, uninterruptible), not simulated time.
+
+use crate::master::{checked, CsvWriter, End, Error, Observer, Options, Phase, RunInfo, System};
+use crate::ssp;
+use crate::table::seconds;
+use libc::{c_char, c_int, c_void};
+use std::collections::BTreeMap;
+use std::ffi::{CStr, CString};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+fn err<T>(msg: impl Into<String>) -> Result<T, Error> {
+    Err(Error(msg.into()))
+}
+
+#[repr(C)]
+struct HelicsError {
+    error_code: i32,
+    message: *const c_char,
+}
+
+type Handle = *mut c_void;
+type E = *mut HelicsError;
+
+macro_rules! api {
+    ($($field:ident : $name:literal => fn($($arg:ty),*) $(-> $ret:ty)?;)*) => {
+        /// The C functions of libhelics this module calls (signatures of helics.h, HELICS 3).
+        struct Api { $($field: unsafe extern "C" fn($($arg),*) $(-> $ret)?,)* }
+
+        impl Api {
+            /// Resolve every function; the first missing one is named.
+            unsafe fn resolve(lib: *mut c_void) -> Result<Api, String> {
+                Ok(Api { $($field: {
+                    let sym = libc::dlsym(lib, concat!($name, "\0").as_ptr() as *const c_char);
+                    if sym.is_null() {
+                        return Err(format!("no function {} (HELICS 3 expected)", $name));
+                    }
+                    std::mem::transmute::<*mut c_void, unsafe extern "C" fn($($arg),*) $(-> $ret)?>(sym)
+                },)* })
+            }
+        }
+    };
+}
+
+api! {
+    error_initialize: "helicsErrorInitialize" => fn() -> HelicsError;
+    get_version: "helicsGetVersion" => fn() -> *const c_char;
+    create_federate_info: "helicsCreateFederateInfo" => fn() -> Handle;
+    info_core_type: "helicsFederateInfoSetCoreTypeFromString" => fn(Handle, *const c_char, E);
+    info_core_init: "helicsFederateInfoSetCoreInitString" => fn(Handle, *const c_char, E);
+    info_flag: "helicsFederateInfoSetFlagOption" => fn(Handle, c_int, c_int, E);
+    info_free: "helicsFederateInfoFree" => fn(Handle);
+    create_value_federate: "helicsCreateValueFederate" => fn(*const c_char, Handle, E) -> Handle;
+    register_global_publication: "helicsFederateRegisterGlobalPublication" => fn(Handle, *const c_char, c_int, *const c_char, E) -> Handle;
+    register_subscription: "helicsFederateRegisterSubscription" => fn(Handle, *const c_char, *const c_char, E) -> Handle;
+    input_set_default_double: "helicsInputSetDefaultDouble" => fn(Handle, f64, E);
+    publish_double: "helicsPublicationPublishDouble" => fn(Handle, f64, E);
+    input_get_double: "helicsInputGetDouble" => fn(Handle, E) -> f64;
+    enter_executing_mode: "helicsFederateEnterExecutingMode" => fn(Handle, E);
+    request_time: "helicsFederateRequestTime" => fn(Handle, f64, E) -> f64;
+    finalize: "helicsFederateFinalize" => fn(Handle, E);
+    federate_free: "helicsFederateFree" => fn(Handle);
+    close_library: "helicsCloseLibrary" => fn();
+}
+
+/// libhelics, dlopened (`helicsCloseLibrary` on drop; never unmapped).
+pub struct Helics {
+    api: Api,
+    path: PathBuf,
+}
+
+const HELICS_DATA_TYPE_DOUBLE: c_int = 1;
+const HELICS_FLAG_UNINTERRUPTIBLE: c_int = 1;
+
+impl Helics {
+    /// dlopen libhelics at `path` and resolve the functions used here.
+    pub fn open(path: &Path) -> Result<Helics, Error> {
+        let c_path = CString::new(path.to_string_lossy().as_bytes())
+            .map_err(|_| Error(format!("{}: bad path", path.display())))?;
+        // SAFETY: dlopen/dlsym with valid C strings; every symbol is cast to the signature of
+        // helics.h (HELICS 3); the library stays loaded for the process.
+        unsafe {
+            let handle = libc::dlopen(c_path.as_ptr(), libc::RTLD_NOW | libc::RTLD_LOCAL);
+            if handle.is_null() {
+                let why = CStr::from_ptr(libc::dlerror()).to_string_lossy();
+                return err(format!("cannot load libhelics {}: {why}", path.display()));
+            }
+            let api = match Api::resolve(handle) {
+                Ok(api) => api,
+                Err(e) => {
+                    libc::dlclose(handle);
+                    return err(format!("{}: {e}", path.display()));
+                }
+            };
+            Ok(Helics {
+                api,
+                path: path.to_path_buf(),
+            })
+        }
+    }
+
+    /// Where the library was loaded from.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The library's version string.
+    pub fn version(&self) -> String {
+        // SAFETY: returns a static C string.
+        unsafe {
+            let v = (self.api.get_version)();
+            if v.is_null() {
+                return "?".into();
+            }
+            CStr::from_ptr(v).to_string_lossy().into_owned()
+        }
+    }
+
+    /// Call `f` with a fresh error object; `Err` naming `what` when it reports an error.
+    fn call<T>(&self, what: &str, f: impl FnOnce(E) -> T) -> Result<T, Error> {
+        // SAFETY: helicsErrorInitialize returns a plain struct; the message (when set) is a C
+        // string owned by the library, copied at once.
+        unsafe {
+            let mut e = (self.api.error_initialize)();
+            let r = f(&mut e);
+            if e.error_code != 0 {
+                let msg = if e.message.is_null() {
+                    String::new()
+                } else {
+                    CStr::from_ptr(e.message).to_string_lossy().into_owned()
+                };
+                return err(format!("HELICS: {what}: {msg} (error {})", e.error_code));
+            }
+            Ok(r)
+        }
+    }
+}
+
+impl Drop for Helics {
+    fn drop(&mut self) {
+        // SAFETY: every federate of this library was freed (Federate borrows Helics). The
+        // library stays mapped: its helper threads may outlive helicsCloseLibrary by a moment.
+        unsafe { (self.api.close_library)() };
+    }
+}
+
+/// libhelics: `explicit` (`--helics-lib`), else `$HELICS_LIB`, else the `helics` wheel in the
+/// project's test venv (`target/venv`, made by `cargo xtask test`), else in `$VIRTUAL_ENV`.
+pub fn find_library(explicit: Option<&Path>) -> Result<PathBuf, Error> {
+    if let Some(p) = explicit {
+        return if p.is_file() {
+            Ok(p.to_path_buf())
+        } else {
+            err(format!("--helics-lib {}: no such file", p.display()))
+        };
+    }
+    if let Some(p) = std::env::var_os("HELICS_LIB") {
+        let p = PathBuf::from(p);
+        return if p.is_file() {
+            Ok(p)
+        } else {
+            err(format!("HELICS_LIB={}: no such file", p.display()))
+        };
+    }
+    let mut venvs = Vec::new();
+    if let Some(v) = std::env::var_os("VIRTUAL_ENV") {
+        venvs.push(PathBuf::from(v));
+    }
+    venvs.push(PathBuf::from("target/venv"));
+    venvs.push(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .parent()
+            .unwrap_or(Path::new("."))
+            .join("target/venv"),
+    );
+    for venv in &venvs {
+        let Ok(libs) = std::fs::read_dir(venv.join("lib")) else {
+            continue;
+        };
+        for py in libs.flatten() {
+            let install = py.path().join("site-packages/helics/install");
+            for lib in ["lib64", "lib"] {
+                let p = install.join(lib).join("libhelics.so");
+                if p.is_file() {
+                    return Ok(p);
+                }
+            }
+        }
+    }
+    err(format!(
+        "libhelics not found: give --helics-lib PATH or HELICS_LIB, or install the `helics` wheel \
+         into the test venv (cargo xtask test does; looked in {})",
+        venvs
+            .iter()
+            .map(|v| v.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    ))
+}
+
+/// `helics_broker` of the wheel holding `lib` (`install/lib64/libhelics.so` → `install/bin`).
+pub fn find_broker(lib: &Path) -> Result<PathBuf, Error> {
+    let p = lib
+        .parent()
+        .and_then(Path::parent)
+        .map(|d| d.join("bin").join("helics_broker"));
+    match p {
+        Some(p) if p.is_file() => Ok(p),
+        _ => err(format!(
+            "no helics_broker next to {} (expected ../bin/helics_broker)",
+            lib.display()
+        )),
+    }
+}
+
+/// One event of an exchange: connection `i` walked whole by its component (both ends in one
+/// unit), read at its source, or set at its destination.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Event {
+    Local(usize),
+    Produce(usize),
+    Consume(usize),
+}
+
+/// An exchange split into rounds: the events of each round in the master's order, and the
+/// connections whose value arrives (is taken from HELICS) at the start of each round.
+#[derive(Debug, Default)]
+struct Schedule {
+    rounds: Vec<Vec<Event>>,
+    receive: Vec<Vec<usize>>,
+}
+
+/// The rounds of one exchange walking `order`: a connection between two components is read at
+/// its source in the source's current round and set at its destination one round later at the
+/// earliest; a source publishes an output once per round (a second read of it after an input
+/// that feeds through was set waits for the next round).
+fn schedule(sys: &System, order: &[usize], phase: Phase) -> Schedule {
+    let n = sys.units.len();
+    let mut round = vec![0usize; n];
+    let mut published: Vec<Option<usize>> = vec![None; n];
+    let mut dirty = vec![false; n];
+    let mut s = Schedule::default();
+    let put = |s: &mut Schedule, r: usize, e: Event| {
+        while s.rounds.len() <= r {
+            s.rounds.push(Vec::new());
+            s.receive.push(Vec::new());
+        }
+        s.rounds[r].push(e);
+    };
+    for &i in order {
+        let l = &sys.links[i];
+        let feeds = l.feeds[phase as usize];
+        if l.src == l.dst {
+            put(&mut s, round[l.src], Event::Local(i));
+        } else {
+            if published[l.src] == Some(round[l.src]) && dirty[l.src] {
+                round[l.src] += 1;
+            }
+            let p = round[l.src];
+            published[l.src] = Some(p);
+            dirty[l.src] = false;
+            put(&mut s, p, Event::Produce(i));
+            round[l.dst] = round[l.dst].max(p + 1);
+            put(&mut s, round[l.dst], Event::Consume(i));
+            s.receive[p + 1].push(i);
+        }
+        if feeds {
+            dirty[l.dst] = true;
+        }
+    }
+    if s.rounds.is_empty() {
+        s.rounds.push(Vec::new());
+        s.receive.push(Vec::new());
+    }
+    s
+}
+
+/// What to run: the system, this federate's components and where its broker is.
+#[derive(Debug, Clone, Default)]
+pub struct FederateOptions {
+    pub system: PathBuf,
+    pub components: Vec<String>,
+    /// The broker's address, `host` or `host:port`.
+    pub broker: String,
+    /// HELICS core type (default `zmq`; `tcp`, `tcpss`, `zmqss` also work across machines).
+    pub core: Option<String>,
+    /// The federate's name (default: the components joined with `+`).
+    pub name: Option<String>,
+    pub out: Option<PathBuf>,
+    pub helics_lib: Option<PathBuf>,
+    pub opts: Options,
+}
+
+/// How a federate's run went.
+#[derive(Debug, Clone)]
+pub struct FederateReport {
+    pub name: String,
+    pub steps: u64,
+    /// HELICS time grants of each initialization pass and of each step.
+    pub init_rounds: usize,
+    pub step_rounds: usize,
+    pub init_passes: usize,
+    /// Wall time from entering executing mode to the end of the last step.
+    pub run_time: Duration,
+    pub load_time: Duration,
+    pub warnings: Vec<String>,
+}
+
+/// The HELICS side of a running federate.
+struct Federate<'a> {
+    h: &'a Helics,
+    fed: Handle,
+    /// Publication of each output (unit, slot) read by another federate.
+    publications: BTreeMap<(usize, usize), Handle>,
+    /// Input of each remote output (unit, slot) this federate reads.
+    inputs: BTreeMap<(usize, usize), Handle>,
+    /// The change counts of initialization: own components' publications, others' inputs.
+    changed_pub: BTreeMap<usize, Handle>,
+    changed_in: BTreeMap<usize, Handle>,
+    /// The HELICS time granted (one per round).
+    time: f64,
+    finalized: bool,
+}
+
+impl Federate<'_> {
+    /// The next round: request the next HELICS time and check it is the one granted.
+    fn next_round(&mut self) -> Result<(), Error> {
+        let want = self.time + 1.0;
+        let (h, fed) = (self.h, self.fed);
+        // SAFETY: a live federate handle; the error object is ours.
+        let got = h.call("helicsFederateRequestTime", |e| unsafe {
+            (h.api.request_time)(fed, want, e)
+        })?;
+        if got != want {
+            return err(format!(
+                "HELICS granted time {got} instead of {want} (another federate left or the federation is not of this system)"
+            ));
+        }
+        self.time = want;
+        Ok(())
+    }
+
+    fn publish(&self, p: Handle, v: f64) -> Result<(), Error> {
+        let h = self.h;
+        // SAFETY: a live publication handle.
+        h.call("helicsPublicationPublishDouble", |e| unsafe {
+            (h.api.publish_double)(p, v, e)
+        })
+    }
+
+    fn get(&self, i: Handle) -> Result<f64, Error> {
+        let h = self.h;
+        // SAFETY: a live input handle.
+        h.call("helicsInputGetDouble", |e| unsafe {
+            (h.api.input_get_double)(i, e)
+        })
+    }
+
+    fn finalize(&mut self) -> Result<(), Error> {
+        if self.finalized {
+            return Ok(());
+        }
+        self.finalized = true;
+        let (h, fed) = (self.h, self.fed);
+        // SAFETY: a live federate handle.
+        h.call("helicsFederateFinalize", |e| unsafe {
+            (h.api.finalize)(fed, e)
+        })
+    }
+}
+
+impl Drop for Federate<'_> {
+    fn drop(&mut self) {
+        let _ = self.finalize();
+        // SAFETY: finalized; freed once.
+        unsafe { (self.h.api.federate_free)(self.fed) };
+    }
+}
+
+/// The local part of a system and its rounds.
+struct Local {
+    system: System,
+    mine: Vec<bool>,
+    /// Values read at their source, by connection (set at their destination later).
+    buf: Vec<f64>,
+    init: Schedule,
+    step: Schedule,
+}
+
+impl Local {
+    /// Read unit `k`'s outputs if stale.
+    fn fresh(&mut self, k: usize) -> Result<(), Error> {
+        let sys = &mut self.system;
+        if !sys.units[k].fresh {
+            sys.units[k].read(&mut sys.warnings)?;
+        }
+        Ok(())
+    }
+
+    /// Set connection `i`'s input to `v` when it changed (as the master's exchange does).
+    fn set(&mut self, i: usize, v: f64, phase: Phase) -> usize {
+        let sys = &mut self.system;
+        let link = &mut sys.links[i];
+        if link.last.map(f64::to_bits) == Some(v.to_bits()) {
+            return 0;
+        }
+        link.last = Some(v);
+        let (vr, ty, dst) = (link.dst_vr, link.ty, link.dst);
+        let feeds = link.feeds[phase as usize];
+        let unit = &mut sys.units[dst];
+        unit.push(vr, ty, v);
+        if feeds {
+            unit.fresh = false;
+        }
+        1
+    }
+
+    /// One exchange in rounds; returns how many of this federate's inputs changed.
+    fn exchange(&mut self, fed: &mut Federate, phase: Phase) -> Result<usize, Error> {
+        let sched = std::mem::take(match phase {
+            Phase::Init => &mut self.init,
+            Phase::Step => &mut self.step,
+        });
+        let r = self.exchange_in(fed, phase, &sched);
+        *match phase {
+            Phase::Init => &mut self.init,
+            Phase::Step => &mut self.step,
+        } = sched;
+        r
+    }
+
+    fn exchange_in(
+        &mut self,
+        fed: &mut Federate,
+        phase: Phase,
+        sched: &Schedule,
+    ) -> Result<usize, Error> {
+        let mut changed = 0;
+        for (j, events) in sched.rounds.iter().enumerate() {
+            if j > 0 {
+                fed.next_round()?;
+                for &i in &sched.receive[j] {
+                    let l = &self.system.links[i];
+                    if self.mine[l.dst] && !self.mine[l.src] {
+                        let input = fed.inputs[&(l.src, l.slot)];
+                        self.buf[i] = fed.get(input)?;
+                    }
+                }
+            }
+            for &e in events {
+                match e {
+                    Event::Local(i) => {
+                        let (src, slot) = (self.system.links[i].src, self.system.links[i].slot);
+                        if !self.mine[src] {
+                            continue;
+                        }
+                        self.fresh(src)?;
+                        let l = &self.system.links[i];
+                        let v = l.factor * self.system.units[src].values[slot] + l.offset;
+                        changed += self.set(i, v, phase);
+                    }
+                    Event::Produce(i) => {
+                        let l = &self.system.links[i];
+                        let (src, slot, dst) = (l.src, l.slot, l.dst);
+                        if !self.mine[src] {
+                            continue;
+                        }
+                        self.fresh(src)?;
+                        let raw = self.system.units[src].values[slot];
+                        if self.mine[dst] {
+                            self.buf[i] = raw;
+                        } else {
+                            fed.publish(fed.publications[&(src, slot)], raw)?;
+                        }
+                    }
+                    Event::Consume(i) => {
+                        let l = &self.system.links[i];
+                        if !self.mine[l.dst] {
+                            continue;
+                        }
+                        let v = l.factor * self.buf[i] + l.offset;
+                        changed += self.set(i, v, phase);
+                    }
+                }
+            }
+        }
+        let sys = &mut self.system;
+        for (k, u) in sys.units.iter_mut().enumerate() {
+            if self.mine[k] {
+                u.flush(&mut sys.warnings)?;
+            }
+        }
+        Ok(changed)
+    }
+
+    /// The master's `sample`, over this federate's units.
+    fn sample(&mut self, t: i64, row: &mut Vec<f64>) -> Result<(), Error> {
+        row.clear();
+        row.push(seconds(t));
+        for k in 0..self.system.units.len() {
+            if self.mine[k] {
+                self.fresh(k)?;
+                row.extend_from_slice(&self.system.units[k].values);
+            }
+        }
+        Ok(())
+    }
+
+    /// The master's one-thread `step_all` over this federate's units.
+    fn step(&mut self, t: i64, h: i64) -> Result<(), Error> {
+        let (ts, hs) = (seconds(t), seconds(h));
+        let sys = &mut self.system;
+        for (k, u) in sys.units.iter_mut().enumerate() {
+            if !self.mine[k] {
+                continue;
+            }
+            u.stepped = u.inst.do_step(ts, hs);
+            u.fresh = false;
+            let idle = u.pending_real.0.is_empty() && u.pending_other.is_empty();
+            if u.stepped <= crate::Status::Warning && idle {
+                u.fetched = Some(u.fetch());
+            }
+        }
+        let result = checked(&mut sys.units, &mut sys.warnings, ts, hs);
+        for u in &mut sys.units {
+            u.fetched = None;
+        }
+        result
+    }
+}
+
+/// Run `o.components` of the system as one HELICS federate to the stop time; the federate's
+/// outputs go to `o.out` (CSV, as `cosim --out` writes them) when given.
+pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
+    let lib_path = find_library(o.helics_lib.as_deref())?;
+    let helics = Helics::open(&lib_path)?;
+    let started = Instant::now();
+    let package = ssp::read(&o.system)?;
+    let system = System::load(&package)?;
+    let names: Vec<String> = package
+        .system
+        .components
+        .iter()
+        .map(|c| c.name.clone())
+        .collect();
+    let mut mine = vec![false; names.len()];
+    for c in &o.components {
+        match names.iter().position(|n| n == c) {
+            Some(k) => mine[k] = true,
+            None => {
+                return err(format!(
+                    "--component {c}: no such component in {} ({})",
+                    o.system.display(),
+                    names.join(", ")
+                ))
+            }
+        }
+    }
+    if !mine.iter().any(|&m| m) {
+        return err("--component: no component given");
+    }
+    let name = o.name.clone().unwrap_or_else(|| o.components.join("+"));
+    let init = schedule(&system, &system.init_order, Phase::Init);
+    let step = schedule(&system, &system.step_order, Phase::Step);
+    if std::env::var_os("COSIM_SCHEDULE").is_some() {
+        for (j, r) in step.rounds.iter().enumerate() {
+            for e in r {
+                let (Event::Local(i) | Event::Produce(i) | Event::Consume(i)) = *e;
+                eprintln!("round {j}: {e:?} {}", system.links[i].label);
+            }
+        }
+    }
+    let mut local = Local {
+        buf: vec![0.0; system.links.len()],
+        system,
+        mine,
+        init,
+        step,
+    };
+    let (start, stop, h) = local.system.experiment(&o.opts)?;
+    let load_time = started.elapsed();
+
+    // The federate and its interfaces.
+    let core = o.core.as_deref().unwrap_or("zmq");
+    let fed = create_federate(&helics, &name, core, &o.broker)?;
+    let mut fed = Federate {
+        h: &helics,
+        fed,
+        publications: BTreeMap::new(),
+        inputs: BTreeMap::new(),
+        changed_pub: BTreeMap::new(),
+        changed_in: BTreeMap::new(),
+        time: 0.0,
+        finalized: false,
+    };
+    let key = |sys: &System, u: usize, slot: usize| {
+        let unit = &sys.units[u];
+        let md = &unit.inst.fmu().description;
+        let var = &md.model_variables.variables[unit.reads[slot].index as usize - 1].name;
+        format!("{}.{var}", unit.name)
+    };
+    for l in &local.system.links {
+        let (src, dst, slot) = (l.src, l.dst, l.slot);
+        if local.mine[src] && !local.mine[dst] && !fed.publications.contains_key(&(src, slot)) {
+            let k = cstring(&key(&local.system, src, slot))?;
+            // SAFETY: a live federate; key and units are C strings alive across the call.
+            let p = helics.call("register publication", |e| unsafe {
+                (helics.api.register_global_publication)(
+                    fed.fed,
+                    k.as_ptr(),
+                    HELICS_DATA_TYPE_DOUBLE,
+                    c"".as_ptr(),
+                    e,
+                )
+            })?;
+            fed.publications.insert((src, slot), p);
+        }
+        if local.mine[dst] && !local.mine[src] && !fed.inputs.contains_key(&(src, slot)) {
+            let k = cstring(&key(&local.system, src, slot))?;
+            // SAFETY: as above.
+            let i = helics.call("register subscription", |e| unsafe {
+                (helics.api.register_subscription)(fed.fed, k.as_ptr(), c"".as_ptr(), e)
+            })?;
+            // SAFETY: a live input.
+            helics.call("set input default", |e| unsafe {
+                (helics.api.input_set_default_double)(i, 0.0, e)
+            })?;
+            fed.inputs.insert((src, slot), i);
+        }
+    }
+    for (k, n) in names.iter().enumerate() {
+        let k_name = cstring(&format!("_cosim.changed.{n}"))?;
+        if local.mine[k] {
+            // SAFETY: as above.
+            let p = helics.call("register publication", |e| unsafe {
+                (helics.api.register_global_publication)(
+                    fed.fed,
+                    k_name.as_ptr(),
+                    HELICS_DATA_TYPE_DOUBLE,
+                    c"".as_ptr(),
+                    e,
+                )
+            })?;
+            fed.changed_pub.insert(k, p);
+        } else {
+            // SAFETY: as above.
+            let i = helics.call("register subscription", |e| unsafe {
+                (helics.api.register_subscription)(fed.fed, k_name.as_ptr(), c"".as_ptr(), e)
+            })?;
+            fed.changed_in.insert(k, i);
+        }
+    }
+    let fed_ptr = fed.fed;
+    // SAFETY: a live federate.
+    helics.call(
+        "helicsFederateEnterExecutingMode (is every federate of the system running?)",
+        |e| unsafe { (helics.api.enter_executing_mode)(fed_ptr, e) },
+    )?;
+    let run_started = Instant::now();
+
+    let mut csv = o.out.as_deref().map(CsvWriter::new);
+    let mut report = FederateReport {
+        name: name.clone(),
+        steps: 0,
+        init_rounds: local.init.rounds.len(),
+        step_rounds: local.step.rounds.len().saturating_sub(1).max(1),
+        init_passes: 0,
+        run_time: Duration::ZERO,
+        load_time,
+        warnings: Vec::new(),
+    };
+    let result = drive(
+        &mut local,
+        &mut fed,
+        &mut csv,
+        (start, stop, h),
+        &mut report,
+    );
+    let end = match &result {
+        Ok(()) => End::Completed,
+        Err(e) => End::Failed {
+            at: seconds(start),
+            error: e.0.clone(),
+        },
+    };
+    if let Some(c) = csv.as_mut() {
+        c.finish(&end)?;
+    }
+    report.run_time = run_started.elapsed();
+    result?;
+    fed.finalize()?;
+    report.warnings = std::mem::take(&mut local.system.warnings);
+    Ok(report)
+}
+
+fn cstring(s: &str) -> Result<CString, Error> {
+    CString::new(s).map_err(|_| Error(format!("'{s}': a NUL in a name")))
+}
+
+/// A value federate named `name` on a `core` core connecting to `broker`.
+fn create_federate(h: &Helics, name: &str, core: &str, broker: &str) -> Result<Handle, Error> {
+    // SAFETY: plain constructor.
+    let info = unsafe { (h.api.create_federate_info)() };
+    if info.is_null() {
+        return err("HELICS: cannot create a federate info");
+    }
+    let result = (|| {
+        let core = cstring(core)?;
+        // SAFETY: a live federate info, C strings alive across the calls.
+        h.call("set core type", |e| unsafe {
+            (h.api.info_core_type)(info, core.as_ptr(), e)
+        })?;
+        let init = cstring(&format!("--federates=1 --broker={broker} --timeout=30s"))?;
+        h.call("set core init string", |e| unsafe {
+            (h.api.info_core_init)(info, init.as_ptr(), e)
+        })?;
+        h.call("set uninterruptible", |e| unsafe {
+            (h.api.info_flag)(info, HELICS_FLAG_UNINTERRUPTIBLE, 1, e)
+        })?;
+        let n = cstring(name)?;
+        let fed = h.call(
+            &format!("cannot join the federation at broker {broker} as '{name}'"),
+            |e| unsafe { (h.api.create_value_federate)(n.as_ptr(), info, e) },
+        )?;
+        if fed.is_null() {
+            return err(format!("HELICS: no federate from broker {broker}"));
+        }
+        Ok(fed)
+    })();
+    // SAFETY: freed once; the federate keeps its own copy.
+    unsafe { (h.api.info_free)(info) };
+    result
+}
+
+/// Initialize, exchange and step as the Jacobi master does, over this federate's units.
+fn drive(
+    local: &mut Local,
+    fed: &mut Federate,
+    csv: &mut Option<CsvWriter>,
+    (start, stop, step): (i64, i64, i64),
+    report: &mut FederateReport,
+) -> Result<(), Error> {
+    initialize(local, fed, start, stop, report)
+        .map_err(|e| Error(format!("during initialization: {e}")))?;
+    let columns: Vec<String> = {
+        let all = local.system.columns();
+        let mut cols = vec![all[0].clone()];
+        let mut at = 1;
+        for (k, u) in local.system.units.iter().enumerate() {
+            let n = u.values.len();
+            if local.mine[k] {
+                cols.extend_from_slice(&all[at..at + n]);
+            }
+            at += n;
+        }
+        cols
+    };
+    if let Some(c) = csv.as_mut() {
+        c.start(&RunInfo {
+            system: &report.name,
+            columns: &columns,
+            start: seconds(start),
+            stop: seconds(stop),
+        })?;
+    }
+    let mut row = Vec::with_capacity(columns.len());
+    let mut t = start;
+    loop {
+        local.sample(t, &mut row)?;
+        if let Some(c) = csv.as_mut() {
+            c.sample(&row)?;
+        }
+        if t >= stop {
+            break;
+        }
+        let h = step.min(stop - t);
+        let step_error = |e: Error| {
+            Error(format!(
+                "in the communication step from t = {} s to {} s: {e}",
+                seconds(t),
+                seconds(t + h)
+            ))
+        };
+        local.step(t, h).map_err(step_error)?;
+        // No new round to start the exchange (the last round of an exchange publishes
+        // nothing); one at least per step, so that the federates go in step.
+        if local.step.rounds.len() == 1 {
+            fed.next_round().map_err(step_error)?;
+        }
+        local.exchange(fed, Phase::Step).map_err(step_error)?;
+        report.steps += 1;
+        t += h;
+    }
+    let sys = &mut local.system;
+    for (k, u) in sys.units.iter_mut().enumerate() {
+        if local.mine[k] {
+            let s = u.inst.terminate();
+            u.check(|| "fmi2Terminate".into(), s, &mut sys.warnings)?;
+        }
+    }
+    Ok(())
+}
+
+/// The master's initialization over this federate's units; the passes end when no input of any
+/// federate changed (every federate publishes its count each pass).
+fn initialize(
+    local: &mut Local,
+    fed: &mut Federate,
+    start: i64,
+    stop: i64,
+    report: &mut FederateReport,
+) -> Result<(), Error> {
+    let sys = &mut local.system;
+    for (k, u) in sys.units.iter_mut().enumerate() {
+        if local.mine[k] {
+            let s = u.inst.setup_experiment(seconds(start), Some(seconds(stop)));
+            u.check(|| "fmi2SetupExperiment".into(), s, &mut sys.warnings)?;
+        }
+    }
+    for (k, name, var, value) in &sys.parameters {
+        if !local.mine[*k] {
+            continue;
+        }
+        let u = &mut sys.units[*k];
+        let s = match value {
+            ssp::Value::Real(v) => u.inst.set_real(&[var.vr], &[*v]),
+            ssp::Value::Integer(v) => u.inst.set_integer(&[var.vr], &[*v as i32]),
+            ssp::Value::Boolean(v) => u.inst.set_boolean(&[var.vr], &[*v]),
+            ssp::Value::String(v) => u.inst.set_string(&[var.vr], &[v.as_str()]),
+        };
+        u.check(
+            || format!("setting parameter '{name}'"),
+            s,
+            &mut sys.warnings,
+        )?;
+    }
+    for (k, u) in sys.units.iter_mut().enumerate() {
+        if local.mine[k] {
+            let s = u.inst.enter_initialization_mode();
+            u.check(
+                || "fmi2EnterInitializationMode".into(),
+                s,
+                &mut sys.warnings,
+            )?;
+            u.fresh = false;
+        }
+    }
+    const MAX_PASSES: usize = 100;
+    let mut passes = 0;
+    loop {
+        let mine = local.exchange(fed, Phase::Init)?;
+        // Every federate's count: own components' published (the count on the first), the
+        // others' read one round later.
+        let mut first = true;
+        for p in fed.changed_pub.values() {
+            fed.publish(*p, if first { mine as f64 } else { 0.0 })?;
+            first = false;
+        }
+        fed.next_round()?;
+        let mut total = mine as f64;
+        for i in fed.changed_in.values() {
+            total += fed.get(*i)?;
+        }
+        report.init_passes += 1;
+        if total == 0.0 {
+            break;
+        }
+        passes += 1;
+        if passes == MAX_PASSES {
+            return err(format!(
+                "initialization did not settle after {MAX_PASSES} exchanges (an algebraic loop that does not converge?)"
+            ));
+        }
+    }
+    let sys = &mut local.system;
+    for (k, u) in sys.units.iter_mut().enumerate() {
+        if local.mine[k] {
+            let s = u.inst.exit_initialization_mode();
+            u.check(|| "fmi2ExitInitializationMode".into(), s, &mut sys.warnings)?;
+            u.fresh = false;
+        }
+    }
+    local.exchange(fed, Phase::Step)?;
+    Ok(())
+}
+
+/// A federation on one machine: the system, its federates' components, where the results go.
+#[derive(Debug, Clone, Default)]
+pub struct FederationOptions {
+    pub system: PathBuf,
+    /// `a,b;c;d`: the components of each federate; components left out run one per federate.
+    pub groups: Option<String>,
+    pub out: Option<PathBuf>,
+    pub helics_lib: Option<PathBuf>,
+    pub opts: Options,
+    /// HELICS core type (default `zmq`).
+    pub core: Option<String>,
+    /// Where the federates write their CSVs (default: next to `out`).
+    pub work_dir: Option<PathBuf>,
+}
+
+/// How a federation went.
+#[derive(Debug, Clone)]
+pub struct FederationReport {
+    pub federates: Vec<Vec<String>>,
+    pub rows: usize,
+    /// Wall time from starting the broker to the last federate's exit.
+    pub wall: Duration,
+    /// Each federate's printed summary (its last stdout line).
+    pub summaries: Vec<String>,
+    /// The commands to run the same federation on several machines.
+    pub commands: Vec<String>,
+}
+
+/// The federates of `groups` over `components` (in SSD order; unlisted ones alone).
+pub fn groups(components: &[String], spec: Option<&str>) -> Result<Vec<Vec<String>>, Error> {
+    let mut out: Vec<Vec<String>> = Vec::new();
+    let mut seen = Vec::new();
+    for g in spec
+        .unwrap_or("")
+        .split(';')
+        .filter(|g| !g.trim().is_empty())
+    {
+        let mut group = Vec::new();
+        for c in g.split(',').map(str::trim).filter(|c| !c.is_empty()) {
+            if !components.iter().any(|n| n == c) {
+                return err(format!(
+                    "--groups: no component '{c}' ({})",
+                    components.join(", ")
+                ));
+            }
+            if seen.iter().any(|s| s == c) {
+                return err(format!("--groups: '{c}' is in two groups"));
+            }
+            seen.push(c.to_owned());
+            group.push(c.to_owned());
+        }
+        out.push(group);
+    }
+    for c in components {
+        if !seen.contains(c) {
+            out.push(vec![c.clone()]);
+        }
+    }
+    Ok(out)
+}
+
+/// Split one CSV line into its fields (as written: quoted fields may hold commas).
+fn fields(line: &str) -> Vec<&str> {
+    let mut out = Vec::new();
+    let (mut start, mut quoted) = (0, false);
+    for (i, ch) in line.char_indices() {
+        match ch {
+            '"' => quoted = !quoted,
+            ',' if !quoted => {
+                out.push(&line[start..i]);
+                start = i + 1;
+            }
+            _ => {}
+        }
+    }
+    out.push(&line[start..]);
+    out
+}
+
+/// A CSV header field's name (unquoted).
+fn unquote(f: &str) -> String {
+    f.strip_prefix('"')
+        .and_then(|f| f.strip_suffix('"'))
+        .map_or_else(|| f.to_owned(), |f| f.replace("\"\"", "\""))
+}
+
+/// Merge the federates' CSVs (same times) into `out`, columns in `order` (the master's).
+fn merge(parts: &[PathBuf], order: &[String], out: &Path) -> Result<usize, Error> {
+    use std::io::{BufRead, BufReader, BufWriter, Write};
+    let io = |p: &Path, e: std::io::Error| Error(format!("{}: {e}", p.display()));
+    let mut readers = Vec::new();
+    // (part, field) of each output column.
+    let mut at: BTreeMap<String, (usize, usize)> = BTreeMap::new();
+    let mut header_text: BTreeMap<String, String> = BTreeMap::new();
+    for (k, p) in parts.iter().enumerate() {
+        let f = std::fs::File::open(p).map_err(|e| io(p, e))?;
+        let mut lines = BufReader::new(f).lines();
+        let header = lines
+            .next()
+            .ok_or_else(|| Error(format!("{}: empty", p.display())))?
+            .map_err(|e| io(p, e))?;
+        for (j, f) in fields(&header).into_iter().enumerate() {
+            let name = unquote(f);
+            if j > 0 || k == 0 {
+                header_text.insert(name.clone(), f.to_owned());
+                at.insert(name, (k, j));
+            }
+        }
+        readers.push(lines);
+    }
+    let picks: Vec<(usize, usize)> = order
+        .iter()
+        .map(|c| {
+            at.get(c)
+                .copied()
+                .ok_or_else(|| Error(format!("no federate wrote column '{c}'")))
+        })
+        .collect::<Result<_, _>>()?;
+    let file = std::fs::File::create(out).map_err(|e| io(out, e))?;
+    let mut w = BufWriter::new(file);
+    let head: Vec<&str> = order.iter().map(|c| header_text[c].as_str()).collect();
+    writeln!(w, "{}", head.join(",")).map_err(|e| io(out, e))?;
+    let mut rows = 0;
+    loop {
+        let mut lines = Vec::with_capacity(readers.len());
+        for (k, r) in readers.iter_mut().enumerate() {
+            match r.next() {
+                Some(l) => lines.push(l.map_err(|e| io(&parts[k], e))?),
+                None => break,
+            }
+        }
+        if lines.len() < readers.len() {
+            if !lines.is_empty() {
+                return err("the federates' CSVs have different numbers of rows");
+            }
+            break;
+        }
+        let split: Vec<Vec<&str>> = lines.iter().map(|l| fields(l)).collect();
+        if split.iter().any(|f| f[0] != split[0][0]) {
+            return err(format!(
+                "the federates' CSVs disagree on the time at row {rows}"
+            ));
+        }
+        let row: Vec<&str> = picks.iter().map(|&(k, j)| split[k][j]).collect();
+        writeln!(w, "{}", row.join(",")).map_err(|e| io(out, e))?;
+        rows += 1;
+    }
+    w.flush().map_err(|e| io(out, e))?;
+    Ok(rows)
+}
+
+/// Run the system as a federation on this machine: `helics_broker` on loopback, one
+/// `exe federate` process per group, their CSVs merged into `o.out` in the master's column order.
+pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationReport, Error> {
+    use std::process::{Command, Stdio};
+    let lib = find_library(o.helics_lib.as_deref())?;
+    let broker_exe = find_broker(&lib)?;
+    let package = ssp::read(&o.system)?;
+    let names: Vec<String> = package
+        .system
+        .components
+        .iter()
+        .map(|c| c.name.clone())
+        .collect();
+    let feds = groups(&names, o.groups.as_deref())?;
+    let order = System::load(&package)?.columns();
+    let out = o.out.clone().unwrap_or_else(|| {
+        PathBuf::from(format!(
+            "{}.csv",
+            o.system
+                .file_stem()
+                .and_then(|s| s.to_str())
+                .unwrap_or("system")
+        ))
+    });
+    let dir = o.work_dir.clone().unwrap_or_else(|| {
+        let mut d = out.as_os_str().to_owned();
+        d.push(".federates");
+        PathBuf::from(d)
+    });
+    std::fs::create_dir_all(&dir).map_err(|e| Error(format!("{}: {e}", dir.display())))?;
+    // A free port on loopback for the broker.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .map_err(|e| Error(format!("no free port on 127.0.0.1: {e}")))?
+        .port();
+    let core = o.core.as_deref().unwrap_or("zmq");
+    let started = Instant::now();
+    let mut broker = Command::new(&broker_exe)
+        .args(["-f", &feds.len().to_string()])
+        .arg(format!("--coretype={core}"))
+        .arg("--local_interface=tcp://127.0.0.1")
+        .arg(format!("--port={port}"))
+        .arg("--loglevel=error")
+        .stdout(Stdio::null())
+        .spawn()
+        .map_err(|e| Error(format!("cannot start {}: {e}", broker_exe.display())))?;
+    let address = format!("127.0.0.1:{port}");
+    // The federates connect once the broker listens (HELICS gives up after a few attempts).
+    let listening = Instant::now();
+    while std::net::TcpStream::connect(&address).is_err() {
+        if let Ok(Some(status)) = broker.try_wait() {
+            return err(format!("{} ended at once ({status})", broker_exe.display()));
+        }
+        if listening.elapsed() > Duration::from_secs(30) {
+            let _ = broker.kill();
+            let _ = broker.wait();
+            return err(format!(
+                "{} does not listen on {address}",
+                broker_exe.display()
+            ));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    let mut timing = vec!["--core".to_owned(), core.to_owned()];
+    if let Some(s) = o.opts.stop {
+        timing.extend(["--stop".to_owned(), s.to_string()]);
+    }
+    if let Some(s) = o.opts.step {
+        timing.extend(["--step".to_owned(), s.to_string()]);
+    }
+    let mut children = Vec::new();
+    let mut parts = Vec::new();
+    let mut commands = vec![format!(
+        "{} -f {} --coretype={core} --local_interface=tcp://BROKER_HOST --port={port}",
+        broker_exe.display(),
+        feds.len()
+    )];
+    let mut failure = None;
+    for (k, g) in feds.iter().enumerate() {
+        let name = format!("fed{k}");
+        let csv = dir.join(format!("{name}.csv"));
+        let args = |broker: &str, csv: &Path| -> Vec<String> {
+            let mut a = vec![
+                "federate".to_owned(),
+                o.system.display().to_string(),
+                "--component".to_owned(),
+                g.join(","),
+                "--broker".to_owned(),
+                broker.to_owned(),
+                "--name".to_owned(),
+                name.clone(),
+                "--out".to_owned(),
+                csv.display().to_string(),
+                "--helics-lib".to_owned(),
+                lib.display().to_string(),
+            ];
+            a.extend(timing.iter().cloned());
+            a
+        };
+        commands.push(format!(
+            "{} {}",
+            exe.display(),
+            args(
+                &format!("BROKER_HOST:{port}"),
+                Path::new(&format!("{name}.csv"))
+            )
+            .join(" ")
+        ));
+        match Command::new(exe)
+            .args(args(&address, &csv))
+            .stdout(Stdio::piped())
+            .spawn()
+        {
+            Ok(c) => children.push(c),
+            Err(e) => {
+                failure = Some(Error(format!("cannot start {}: {e}", exe.display())));
+                break;
+            }
+        }
+        parts.push(csv);
+    }
+    // Wait for every federate; when one fails, the others would wait for it: stop them.
+    let mut summaries = vec![String::new(); children.len()];
+    let mut running: Vec<Option<std::process::Child>> = children.into_iter().map(Some).collect();
+    while failure.is_none() && running.iter().any(Option::is_some) {
+        for k in 0..running.len() {
+            let Some(c) = running[k].as_mut() else {
+                continue;
+            };
+            match c.try_wait() {
+                Ok(None) => continue,
+                Ok(Some(status)) if status.success() => {
+                    let c = running[k].take().expect("running");
+                    if let Ok(out) = c.wait_with_output() {
+                        summaries[k] = String::from_utf8_lossy(&out.stdout)
+                            .lines()
+                            .last()
+                            .unwrap_or("")
+                            .to_owned();
+                    }
+                }
+                Ok(Some(status)) => {
+                    running[k] = None;
+                    failure = Some(Error(format!(
+                        "federate fed{k} ({}) failed ({status}); the others were stopped",
+                        feds[k].join(",")
+                    )));
+                }
+                Err(e) => failure = Some(Error(format!("federate fed{k}: {e}"))),
+            }
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    for c in running.iter_mut().flatten() {
+        let _ = c.kill();
+        let _ = c.wait();
+    }
+    if failure.is_some() {
+        // The broker waits for federates that never came: stop it (it is our child).
+        let _ = broker.kill();
+    }
+    let _ = broker.wait();
+    let wall = started.elapsed();
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    let rows = merge(&parts, &order, &out)?;
+    Ok(FederationReport {
+        federates: feds,
+        rows,
+        wall,
+        summaries,
+        commands,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn names(v: &[&str]) -> Vec<String> {
+        v.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn groups_cover_every_component_once() {
+        let all = names(&["grid", "operator", "wind", "pv", "bess"]);
+        let g = groups(&all, Some("grid,operator; wind ,pv")).unwrap();
+        assert_eq!(
+            g,
+            vec![
+                names(&["grid", "operator"]),
+                names(&["wind", "pv"]),
+                names(&["bess"])
+            ]
+        );
+        assert_eq!(groups(&all, None).unwrap().len(), 5);
+        assert!(groups(&all, Some("grid;grid"))
+            .unwrap_err()
+            .0
+            .contains("two groups"));
+        assert!(groups(&all, Some("nosuch"))
+            .unwrap_err()
+            .0
+            .contains("'nosuch'"));
+    }
+
+    #[test]
+    fn csv_fields_keep_quoted_commas() {
+        assert_eq!(fields("time,\"a,b\",c"), vec!["time", "\"a,b\"", "c"]);
+        assert_eq!(unquote("\"a,\"\"b\"\"\""), "a,\"b\"");
+        assert_eq!(unquote("grid.pcc.f"), "grid.pcc.f");
+    }
+
+    #[test]
+    fn a_missing_library_is_named() {
+        let e = find_library(Some(Path::new("/nonexistent/libhelics.so"))).unwrap_err();
+        assert!(e.0.contains("/nonexistent/libhelics.so"), "{e}");
+    }
+}

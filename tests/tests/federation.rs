@@ -1,7 +1,7 @@
 //! Scaling out (docs/scaling.md): case1_load as a HELICS federation on loopback (one federate
 //! per component, or grouped, also out of SSD order) writes the CSV of our Jacobi master bit for bit; and a system of
-//! 20 units as 20 federates. Skipped, with the reason printed, when libhelics is not installed
-//! (`cargo xtask test` installs the `helics` wheel into target/venv).
+//! 20 units as 20 federates. Skipped, with the reason printed, when libhelics is not installed,
+//! except under `cargo xtask test`, which installs the `helics` wheel into target/venv first.
 
 use dvpp_cosim::federate::find_library;
 use dvpp_cosim::ssp;
@@ -10,10 +10,14 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Instant;
 
-/// libhelics, or `None` after printing why the test is skipped.
+/// libhelics, or `None` after printing why the test is skipped; `cargo xtask test`, which
+/// installs it, sets `DVPP_REQUIRE_HELICS` so that a missing library fails instead.
 fn helics() -> Option<PathBuf> {
     match find_library(None) {
         Ok(p) => Some(p),
+        Err(e) if std::env::var_os("DVPP_REQUIRE_HELICS").is_some() => {
+            panic!("DVPP_REQUIRE_HELICS is set: {e}")
+        }
         Err(e) => {
             eprintln!("skipped: {e}");
             None

@@ -611,10 +611,13 @@ fn test() -> Result {
     bundle(&[])?;
     let dist = root().join("dist").join("default");
     let cosim = cosim_binary()?;
+    // The venv first: the federation test loads libhelics from it.
+    let python = python_env()?;
     run(cargo()
         .args(["test", "--workspace"])
         .env("DVPP_DIST", &dist)
-        .env("DVPP_COSIM", &cosim))?;
+        .env("DVPP_COSIM", &cosim)
+        .env("DVPP_REQUIRE_HELICS", "1"))?;
     // The 300 s grid dynamics tests are ignored in debug builds; run them optimized.
     run(cargo().args([
         "test",
@@ -624,7 +627,6 @@ fn test() -> Result {
         "--test",
         "dynamics",
     ]))?;
-    let python = python_env()?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "tests/python"])
         .current_dir(root())

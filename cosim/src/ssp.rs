@@ -621,6 +621,46 @@ impl Drop for TempDir {
     }
 }
 
+/// Write into `dir` an SSP directory of `n` unconnected components `unit1` … `unitN` of the FMU
+/// at `fmu` (copied to `resources/unit.fmu`), each recording every output, stepping by `step`:
+/// the systems of the scale benchmark and of the federation test.
+pub fn write_copies(fmu: &Path, n: usize, dir: &Path, step: f64) -> Result<(), String> {
+    use model_description::{BaseType, Causality};
+    let loaded = crate::Fmu::load(fmu).map_err(|e| e.to_string())?;
+    let connectors: Vec<Connector> = loaded
+        .description
+        .model_variables
+        .variables
+        .iter()
+        .filter(|v| v.causality() == Causality::Output && v.base_type() != BaseType::String)
+        .map(|v| Connector {
+            name: v.name.clone(),
+            kind: Kind::Output,
+            ty: v.base_type().into(),
+        })
+        .collect();
+    let system = System {
+        name: format!("units{n}"),
+        description: Some(format!("{n} units of {}", fmu.display())),
+        components: (1..=n)
+            .map(|k| Component {
+                name: format!("unit{k}"),
+                source: "resources/unit.fmu".into(),
+                connectors: connectors.clone(),
+                parameters: Vec::new(),
+            })
+            .collect(),
+        connections: Vec::new(),
+        start_time: 0.0,
+        stop_time: Some(1.0),
+        step_size: Some(step),
+    };
+    let at = |e: std::io::Error| format!("{}: {e}", dir.display());
+    std::fs::create_dir_all(dir.join("resources")).map_err(at)?;
+    std::fs::copy(fmu, dir.join("resources").join("unit.fmu")).map_err(at)?;
+    std::fs::write(dir.join("SystemStructure.ssd"), system.to_ssd()).map_err(at)
+}
+
 /// Read an .ssp archive (unpacked into a temporary directory), a directory holding
 /// `SystemStructure.ssd`, or an `.ssd` file (its directory is the package directory).
 pub fn read(path: &Path) -> Result<Package, Error> {

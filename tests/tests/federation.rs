@@ -191,43 +191,8 @@ fn a_federate_names_a_missing_library_and_an_unknown_component() {
 
 /// A system of `n` units of the DER FMU, unconnected (as the scale bench writes them).
 fn units(n: usize, dir: &Path) -> PathBuf {
-    let fmu = fmu_path("dvpp_der");
-    let loaded = dvpp_cosim::Fmu::load(&fmu).unwrap_or_else(|e| panic!("{e}"));
-    let connectors: Vec<ssp::Connector> = loaded
-        .description
-        .model_variables
-        .variables
-        .iter()
-        .filter(|v| {
-            v.causality() == model_description::Causality::Output
-                && v.base_type() != model_description::BaseType::String
-        })
-        .map(|v| ssp::Connector {
-            name: v.name.clone(),
-            kind: ssp::Kind::Output,
-            ty: v.base_type().into(),
-        })
-        .collect();
-    let system = ssp::System {
-        name: format!("units{n}"),
-        description: None,
-        components: (1..=n)
-            .map(|k| ssp::Component {
-                name: format!("der{k}"),
-                source: "resources/unit.fmu".into(),
-                connectors: connectors.clone(),
-                parameters: Vec::new(),
-            })
-            .collect(),
-        connections: Vec::new(),
-        start_time: 0.0,
-        stop_time: Some(1.0),
-        step_size: Some(1e-3),
-    };
     let sys = dir.join(format!("units{n}"));
-    std::fs::create_dir_all(sys.join("resources")).expect("create");
-    std::fs::copy(&fmu, sys.join("resources").join("unit.fmu")).expect("copy");
-    std::fs::write(sys.join("SystemStructure.ssd"), system.to_ssd()).expect("write");
+    ssp::write_copies(&fmu_path("dvpp_der"), n, &sys, 1e-3).unwrap_or_else(|e| panic!("{e}"));
     sys
 }
 
@@ -244,11 +209,11 @@ fn twenty_units_as_twenty_federates() {
     let halves = format!(
         "{};{}",
         (1..=10)
-            .map(|k| format!("der{k}"))
+            .map(|k| format!("unit{k}"))
             .collect::<Vec<_>>()
             .join(","),
         (11..=20)
-            .map(|k| format!("der{k}"))
+            .map(|k| format!("unit{k}"))
             .collect::<Vec<_>>()
             .join(",")
     );

@@ -1,7 +1,7 @@
 //! `scale|FMU|N,N,...|UNIT_STEPS[|KEEP_DIR]`: the master's cost against the number of units
 //! (with KEEP_DIR the systems are left in `KEEP_DIR/nN/` for other masters).
 //!
-//! For each N a system of N components of FMU (`der1` … `derN`, every output recorded as the
+//! For each N a system of N components of FMU (`unit1` … `unitN`, every output recorded as the
 //! bundler records a DER's, inputs held at their start values, no connections) is written as
 //! an SSP directory. Each configuration (identical binaries shared or each loaded separately;
 //! 1 or 2 stepping threads) runs in a process of its own, so that its peak RSS is its own, for
@@ -15,8 +15,7 @@
 //! it sets for 4 and 8 cores.
 
 use dvpp_cosim::master::{End, Jacobi, Observer, Options, RunInfo, Sharing, System};
-use dvpp_cosim::{ssp, Fmu};
-use model_description::{BaseType, Causality};
+use dvpp_cosim::ssp;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::Instant;
@@ -53,43 +52,6 @@ struct Run {
     steps: u64,
     /// µs per step spent stepping the units ([`System::step_time`]).
     round_us: f64,
-}
-
-/// Write the SSP directory of `n` components of `fmu` into `dir`.
-fn write_system(fmu: &Path, n: usize, dir: &Path) -> Result<(), String> {
-    let loaded = Fmu::load(fmu).map_err(|e| e.to_string())?;
-    let connectors: Vec<ssp::Connector> = loaded
-        .description
-        .model_variables
-        .variables
-        .iter()
-        .filter(|v| v.causality() == Causality::Output && v.base_type() != BaseType::String)
-        .map(|v| ssp::Connector {
-            name: v.name.clone(),
-            kind: ssp::Kind::Output,
-            ty: v.base_type().into(),
-        })
-        .collect();
-    let system = ssp::System {
-        name: format!("scale{n}"),
-        description: Some(format!("{n} units of {}", fmu.display())),
-        components: (1..=n)
-            .map(|k| ssp::Component {
-                name: format!("der{k}"),
-                source: "resources/unit.fmu".into(),
-                connectors: connectors.clone(),
-                parameters: Vec::new(),
-            })
-            .collect(),
-        connections: Vec::new(),
-        start_time: 0.0,
-        stop_time: Some(1.0),
-        step_size: Some(STEP),
-    };
-    let at = |e: std::io::Error| format!("{}: {e}", dir.display());
-    std::fs::create_dir_all(dir.join("resources")).map_err(at)?;
-    std::fs::copy(fmu, dir.join("resources").join("unit.fmu")).map_err(at)?;
-    std::fs::write(dir.join("SystemStructure.ssd"), system.to_ssd()).map_err(at)
 }
 
 /// The peak resident set of this process, MB (`VmHWM`).
@@ -290,7 +252,7 @@ fn best(xs: &[f64]) -> f64 {
 fn measure_in(root: &Path, fmu: &Path, ns: &[usize], unit_steps: u64) -> Result<(), String> {
     let dirs: Vec<PathBuf> = ns.iter().map(|n| root.join(format!("n{n}"))).collect();
     for (n, dir) in ns.iter().zip(&dirs) {
-        write_system(fmu, *n, dir)?;
+        ssp::write_copies(fmu, *n, dir, STEP)?;
     }
     // runs[i][c]: every run of N = ns[i] in configuration c.
     let mut runs: Vec<Vec<Vec<Run>>> = vec![vec![Vec::new(); CONFIGS.len()]; ns.len()];

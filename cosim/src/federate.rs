@@ -10,6 +10,7 @@
 //! on how components are grouped into federates): every federate computes the same one, and
 //! HELICS time counts rounds (1 s per round, uninterruptible), not simulated time.
 
+use crate::dl::dl_api;
 use crate::master::{checked, CsvWriter, End, Error, Observer, Options, Phase, RunInfo, System};
 use crate::ssp;
 use crate::table::seconds;
@@ -32,27 +33,9 @@ struct HelicsError {
 type Handle = *mut c_void;
 type E = *mut HelicsError;
 
-macro_rules! api {
-    ($($field:ident : $name:literal => fn($($arg:ty),*) $(-> $ret:ty)?;)*) => {
-        /// The C functions of libhelics this module calls (signatures of helics.h, HELICS 3).
-        struct Api { $($field: unsafe extern "C" fn($($arg),*) $(-> $ret)?,)* }
-
-        impl Api {
-            /// Resolve every function; the first missing one is named.
-            unsafe fn resolve(lib: *mut c_void) -> Result<Api, String> {
-                Ok(Api { $($field: {
-                    let sym = libc::dlsym(lib, concat!($name, "\0").as_ptr() as *const c_char);
-                    if sym.is_null() {
-                        return Err(format!("no function {} (HELICS 3 expected)", $name));
-                    }
-                    std::mem::transmute::<*mut c_void, unsafe extern "C" fn($($arg),*) $(-> $ret)?>(sym)
-                },)* })
-            }
-        }
-    };
-}
-
-api! {
+dl_api! {
+    /// The C functions of libhelics this module calls (signatures of helics.h, HELICS 3).
+    "no function {} (HELICS 3 expected)";
     error_initialize: "helicsErrorInitialize" => fn() -> HelicsError;
     get_version: "helicsGetVersion" => fn() -> *const c_char;
     create_federate_info: "helicsCreateFederateInfo" => fn() -> Handle;
@@ -547,12 +530,7 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     let started = Instant::now();
     let package = ssp::read(&o.system)?;
     let system = System::load(&package)?;
-    let names: Vec<String> = package
-        .system
-        .components
-        .iter()
-        .map(|c| c.name.clone())
-        .collect();
+    let names = component_names(&package);
     let mut mine = vec![false; names.len()];
     for c in &o.components {
         match names.iter().position(|n| n == c) {
@@ -1045,6 +1023,16 @@ fn merge(parts: &[PathBuf], order: &[String], out: &Path) -> Result<usize, Error
     Ok(rows)
 }
 
+/// The system's component names, in SSD order.
+fn component_names(package: &ssp::Package) -> Vec<String> {
+    package
+        .system
+        .components
+        .iter()
+        .map(|c| c.name.clone())
+        .collect()
+}
+
 /// Run the system as a federation on this machine: `helics_broker` on loopback, one
 /// `exe federate` process per group, their CSVs merged into `o.out` in the master's column order.
 pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationReport, Error> {
@@ -1052,12 +1040,7 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
     let lib = find_library(o.helics_lib.as_deref())?;
     let broker_exe = find_broker(&lib)?;
     let package = ssp::read(&o.system)?;
-    let names: Vec<String> = package
-        .system
-        .components
-        .iter()
-        .map(|c| c.name.clone())
-        .collect();
+    let names = component_names(&package);
     let feds = groups(&names, o.groups.as_deref())?;
     let order = System::load(&package)?.columns();
     let out = o.out.clone().unwrap_or_else(|| {

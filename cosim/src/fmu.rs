@@ -2,6 +2,7 @@
 //! FMUs whose binaries are identical (same `modelIdentifier`, same bytes) share one dlopen
 //! ([`Library`]) and are instantiated from it many times, each with its own unpacked resources.
 
+use crate::dl::dl_api;
 use model_description::ModelDescription;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::fmt;
@@ -60,31 +61,9 @@ struct CallbackFunctions {
     environment: *mut c_void,
 }
 
-macro_rules! api {
-    ($($field:ident : $name:literal => fn($($arg:ty),*) $(-> $ret:ty)?;)*) => {
-        /// The 34 FMI 2.0 Co-Simulation functions of one binary.
-        #[allow(non_snake_case)]
-        struct Api { $($field: unsafe extern "C" fn($($arg),*) $(-> $ret)?,)* }
-
-        impl Api {
-            /// Resolve every function; the first missing one is named.
-            unsafe fn resolve(lib: *mut c_void) -> Result<Api, String> {
-                Ok(Api { $($field: {
-                    let sym = libc::dlsym(lib, concat!($name, "\0").as_ptr() as *const c_char);
-                    if sym.is_null() {
-                        return Err(format!("the binary does not export {}", $name));
-                    }
-                    std::mem::transmute::<*mut c_void, unsafe extern "C" fn($($arg),*) $(-> $ret)?>(sym)
-                },)* })
-            }
-        }
-
-        /// Names of the functions every FMI 2.0 Co-Simulation binary must export.
-        pub const FMI2_CS_FUNCTIONS: &[&str] = &[$($name),*];
-    };
-}
-
-api! {
+dl_api! {
+    /// The 34 FMI 2.0 Co-Simulation functions of one binary.
+    "the binary does not export {}";
     get_types_platform: "fmi2GetTypesPlatform" => fn() -> *const c_char;
     get_version: "fmi2GetVersion" => fn() -> *const c_char;
     set_debug_logging: "fmi2SetDebugLogging" => fn(Component, c_int, usize, *const *const c_char) -> c_int;
@@ -120,6 +99,9 @@ api! {
     get_boolean_status: "fmi2GetBooleanStatus" => fn(Component, c_int, *mut c_int) -> c_int;
     get_string_status: "fmi2GetStringStatus" => fn(Component, c_int, *mut *const c_char) -> c_int;
 }
+
+/// Names of the functions every FMI 2.0 Co-Simulation binary must export.
+pub const FMI2_CS_FUNCTIONS: &[&str] = Api::NAMES;
 
 /// A loaded FMU binary (the dlopen handle and its 34 functions), shared by every [`Fmu`] whose
 /// binary has the same `modelIdentifier` and identical bytes; closed when the last one drops.

@@ -7,6 +7,7 @@
 //! point to [`master::Observer`]s; [`table`] holds results and the master's clock; [`interrupt`]
 //! turns SIGINT/SIGTERM into a clean stop. The `cosim` binary is the command-line front end.
 
+mod dl;
 pub mod federate;
 pub mod fmu;
 pub mod interrupt;

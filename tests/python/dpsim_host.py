@@ -24,6 +24,8 @@ import time
 
 import numpy as np
 
+from fmu_slave import Slave
+
 F_NOM = 50.0
 W_NOM = 2 * math.pi * F_NOM
 V_NOM = 20e3  # line-to-line RMS, V
@@ -47,10 +49,7 @@ def der_path():
     return str(DIST / "dvpp_der.fmu")
 
 
-_EXTRACTED = {}
-
-
-class Der:
+class Der(Slave):
     """One DER FMU instance through fmpy's FMU2Slave, driven step by step (inputs held over each
     step), with its log collected."""
 
@@ -59,42 +58,10 @@ class Der:
     FLAGS = ("limit.current", "limit.dc", "limit.source", "limit.modulation", "synchronized")
 
     def __init__(self, params, start, name="der"):
-        from fmpy import extract
-        from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-        from fmpy.model_description import read_model_description
-
-        path = der_path()
-        if path not in _EXTRACTED:
-            _EXTRACTED[path] = (read_model_description(path), extract(path))
-        md, unzipdir = _EXTRACTED[path]
-        self.vars = {v.name: v for v in md.modelVariables}
-        self.messages = []
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(
-            lambda env, inst, status, cat, msg: self.messages.append((status, msg.decode()))
-        )
-        self.callbacks.allocateMemory = defaultCallbacks.allocateMemory
-        self.callbacks.freeMemory = defaultCallbacks.freeMemory
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir,
-                             modelIdentifier=md.coSimulation.modelIdentifier, instanceName=name)
-        self.fmu.instantiate(loggingOn=False, callbacks=self.callbacks)
-        self.fmu.setupExperiment(startTime=0.0)
-        for k, x in {**params, **start}.items():
-            var = self.vars[k]
-            if var.type == "Integer":
-                self.fmu.setInteger([var.valueReference], [int(x)])
-            elif var.type == "Boolean":
-                self.fmu.setBoolean([var.valueReference], [bool(x)])
-            else:
-                self.fmu.setReal([var.valueReference], [float(x)])
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
+        super().__init__(der_path(), name, {**params, **start})
         self.vr_in = [self.vars[n].valueReference for n in self.INPUTS]
         self.vr_out = [self.vars[n].valueReference for n in self.OUTPUTS]
         self.vr_flags = [self.vars[n].valueReference for n in self.FLAGS]
-
-    def get(self, *names):
-        return self.fmu.getReal([self.vars[n].valueReference for n in names])
 
     def flags(self):
         return dict(zip(self.FLAGS, self.fmu.getBoolean(self.vr_flags)))
@@ -106,10 +73,6 @@ class Der:
 
     def warnings(self):
         return [m for status, m in self.messages if status >= 1]
-
-    def free(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
 
 
 class Network:

@@ -4,16 +4,12 @@ import math
 
 import numpy as np
 import pytest
-from fmpy import extract
-from fmpy.model_description import read_model_description
-from fmpy.fmi2 import FMU2Slave, defaultCallbacks, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE
-
 from conftest import DIST
+from fmu_slave import Slave
 
 VARIANTS = DIST.parent / "variants"
 H, D, S_BASE, S_DVPP = 5.55, 33.33, 100.0, 96.0
 TO_DVPP = S_BASE / S_DVPP
-_EXTRACTED = {}
 
 
 def path_of(unit):
@@ -24,43 +20,12 @@ def path_of(unit):
 OPEN_LOOP = {"I_max": 1e9, "dc.t_budget": 1e-9, "E_max": 1e9}
 
 
-class Unit:
+class Unit(Slave):
     """One DER instance through fmpy's FMU2Slave, with its log collected."""
 
     def __init__(self, unit, params=None, name="der"):
-        path = path_of(unit)
-        if path not in _EXTRACTED:
-            _EXTRACTED[path] = (read_model_description(path), extract(path))
-        md, unzipdir = _EXTRACTED[path]
-        self.vars = {v.name: v for v in md.modelVariables}
-        self.messages = []
-        self.callbacks = fmi2CallbackFunctions()
-        self.callbacks.logger = fmi2CallbackLoggerTYPE(
-            lambda env, inst, status, cat, msg: self.messages.append((status, msg.decode()))
-        )
-        self.callbacks.allocateMemory = defaultCallbacks.allocateMemory
-        self.callbacks.freeMemory = defaultCallbacks.freeMemory
-        self.fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipdir, modelIdentifier=md.coSimulation.modelIdentifier,
-                             instanceName=name)
-        self.fmu.instantiate(loggingOn=False, callbacks=self.callbacks)
-        self.fmu.setupExperiment(startTime=0.0)
-        for k, x in (params or {}).items():
-            self.set(k, x)
-        self.fmu.enterInitializationMode()
-        self.fmu.exitInitializationMode()
+        super().__init__(path_of(unit), name, params)
         self.t = 0.0
-
-    def vr(self, name):
-        return self.vars[name].valueReference
-
-    def set(self, name, x):
-        if self.vars[name].type == "Integer":
-            self.fmu.setInteger([self.vr(name)], [int(x)])
-        else:
-            self.fmu.setReal([self.vr(name)], [float(x)])
-
-    def get(self, *names):
-        return self.fmu.getReal([self.vr(n) for n in names])
 
     def step(self, h):
         self.fmu.doStep(self.t, h)
@@ -68,10 +33,6 @@ class Unit:
 
     def warnings(self):
         return [m for status, m in self.messages if status == 1]
-
-    def free(self):
-        self.fmu.terminate()
-        self.fmu.freeInstance()
 
 
 def t_pf(w):

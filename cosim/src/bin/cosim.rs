@@ -56,18 +56,20 @@ struct Args {
     signals: Vec<String>,
 }
 
+/// The value of `flag`: a positive finite number.
+fn number(flag: &str, v: Option<String>) -> Result<f64, String> {
+    let v = v.ok_or(format!("{flag} needs a value"))?;
+    v.parse::<f64>()
+        .ok()
+        .filter(|x| x.is_finite() && *x > 0.0)
+        .ok_or(format!("{flag} {v}: not a positive number"))
+}
+
 fn parse() -> Result<Args, String> {
     let mut it = std::env::args().skip(1);
     let mut args = Args {
         iterative: master::Iterative::new(),
         ..Args::default()
-    };
-    let number = |flag: &str, v: Option<String>| -> Result<f64, String> {
-        let v = v.ok_or(format!("{flag} needs a value"))?;
-        v.parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite() && *x > 0.0)
-            .ok_or(format!("{flag} {v}: not a positive number"))
     };
     while let Some(a) = it.next() {
         match a.as_str() {
@@ -273,13 +275,6 @@ fn parse_federated() -> Result<(FederateOptions, FederationOptions), String> {
     let mut fed = FederateOptions::default();
     let mut all = FederationOptions::default();
     let mut it = std::env::args().skip(2);
-    let number = |flag: &str, v: Option<String>| -> Result<f64, String> {
-        let v = v.ok_or(format!("{flag} needs a value"))?;
-        v.parse::<f64>()
-            .ok()
-            .filter(|x| x.is_finite() && *x > 0.0)
-            .ok_or(format!("{flag} {v}: not a positive number"))
-    };
     let mut system = None;
     while let Some(a) = it.next() {
         let mut value = |what: &str| it.next().ok_or(format!("{a} needs {what}"));

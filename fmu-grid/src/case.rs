@@ -250,10 +250,29 @@ pub struct Pcc {
     pub f_filter_t: f64,
 }
 
+/// Where a POC's powers are measured on its branches.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum PocSide {
+    /// What the branches deliver into the POC bus (after their own losses).
+    #[default]
+    Grid,
+    /// What the branches take from their far (area-side) ends: the area's export before the
+    /// coupling transformers, where the MV lines' rotated power `p'` is conserved.
+    Area,
+}
+
+impl PocSide {
+    fn is_grid(&self) -> bool {
+        *self == PocSide::Grid
+    }
+}
+
 /// A point of coupling (POC) of an area (e.g. an MV distribution grid hosting DVPP units) with the
 /// rest of the grid: the transmission bus where it is measured and the branches through which
-/// the area's power arrives there. `poc[k].p`, `q` are the powers those branches deliver into
-/// `bus` (positive: the area feeds the grid, as `pcc.p`); `v`, `f` are measured at `bus`.
+/// the area's power arrives there. `poc[k].p`, `q` are the powers those branches carry from the
+/// area to `bus` (positive: the area feeds the grid, as `pcc.p`), measured at the side `side`;
+/// `v`, `f` are measured at `bus`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Poc {
@@ -263,6 +282,9 @@ pub struct Poc {
     /// Names of the branches (lines or transformers) joining `bus` to the area; each must touch
     /// `bus`.
     pub branches: Vec<String>,
+    /// Which end of the branches the powers are measured at (default `grid`: at `bus`).
+    #[serde(default, skip_serializing_if = "PocSide::is_grid")]
+    pub side: PocSide,
     /// Time constant of the first-order filter on the angle derivative, s (as `[pcc]`).
     #[serde(default = "default_tf")]
     pub f_filter_t: f64,

@@ -242,8 +242,10 @@ pub struct PccOutput {
 pub(crate) struct PocRt {
     /// Measurement bus (index).
     pub bus: usize,
-    /// Branch indices whose flows into `bus` are summed.
+    /// Branch indices whose flows from the area towards `bus` are summed.
     pub branches: Vec<usize>,
+    /// Measured at the branches' area-side ends (else where they meet `bus`).
+    pub area_side: bool,
     pub tf: f64,
 }
 
@@ -315,8 +317,8 @@ pub struct Outputs {
     pub t: f64,
     pub der: Vec<DerOutput>,
     pub pcc: PccOutput,
-    /// Per point of coupling (case `[[poc]]`): the power its branches deliver into its bus
-    /// (positive: the area feeds the grid), its bus voltage, frequency and angle.
+    /// Per point of coupling (case `[[poc]]`): the power the area sends through its branches
+    /// (positive: the area feeds the grid; at the POC bus or the area side, `Poc::side`), its bus voltage, frequency and angle.
     pub poc: Vec<PccOutput>,
     /// Active and reactive power the loads inside the POC area draw (0 without POCs), pu.
     pub area_p_load: f64,
@@ -481,6 +483,7 @@ impl Grid {
                         .iter()
                         .map(|name| branches.iter().position(|b| &b.name == name).unwrap())
                         .collect(),
+                    area_side: p.side == crate::case::PocSide::Area,
                     tf: p.f_filter_t,
                 }
             })
@@ -884,8 +887,15 @@ impl Grid {
                 let br = &self.branches[b];
                 if br.in_service {
                     let (sf, st) = self.branch_flows(br);
-                    // the power the branch delivers into the POC bus
-                    s -= if p.bus == br.from { sf } else { st };
+                    // flows leave each end into the branch: the area side's counts as it is,
+                    // the POC bus's with its sign turned (what the branch delivers there)
+                    let at_bus = p.bus == br.from;
+                    s += match (p.area_side, at_bus) {
+                        (true, true) => st,
+                        (true, false) => sf,
+                        (false, true) => -sf,
+                        (false, false) => -st,
+                    };
                 }
             }
             let th = self.poc_angle[k];

@@ -627,19 +627,23 @@ impl Model for GridFmu {
                     .unwrap_or_else(|| format!("point of coupling {}", k + 1));
                 let bus = p.bus;
                 let through = p.branches.join(", ");
+                let at = match p.side {
+                    case::PocSide::Grid => format!("at bus {bus}"),
+                    case::PocSide::Area => "at their area-side ends".to_string(),
+                };
                 [
                     v.real(Spec::output(
                         &ports::poc_p(k + 1),
                         "pu",
                         &format!(
-                            "{label}: active power the area delivers into bus {bus} through {through} (positive: into the grid, as pcc.p), on S_base"
+                            "{label}: active power the area sends through {through} towards bus {bus}, measured {at} (positive: into the grid, as pcc.p), on S_base"
                         ),
                     )),
                     v.real(Spec::output(
                         &ports::poc_q(k + 1),
                         "pu",
                         &format!(
-                            "{label}: reactive power the area delivers into bus {bus} through {through}, on S_base"
+                            "{label}: reactive power the area sends through {through} towards bus {bus}, measured {at}, on S_base"
                         ),
                     )),
                     v.real(Spec::output(

@@ -75,12 +75,12 @@ fn poc(k: usize, port: &str) -> String {
     format!("poc[{k}].{port}")
 }
 
-/// POC `k` (1-based), output: active power the area delivers into the POC bus.
+/// POC `k` (1-based), output: active power the area sends through the POC.
 pub fn poc_p(k: usize) -> String {
     poc(k, "p")
 }
 
-/// POC `k` (1-based), output: reactive power the area delivers into the POC bus.
+/// POC `k` (1-based), output: reactive power the area sends through the POC.
 pub fn poc_q(k: usize) -> String {
     poc(k, "q")
 }

@@ -472,13 +472,13 @@ impl Pocs {
                 v,
                 ports::poc_p(k),
                 0.0,
-                "active power the DVPP area delivers into the POC bus, on S_base",
+                "active power the DVPP area sends through the POC, on S_base",
             );
             let q = input(
                 v,
                 ports::poc_q(k),
                 0.0,
-                "reactive power the DVPP area delivers into the POC bus, on S_base",
+                "reactive power the DVPP area sends through the POC, on S_base",
             );
             let f = input(v, ports::poc_f(k), 1.0, "frequency, pu of f_nom");
             input(v, ports::poc_v(k), 1.0, "voltage magnitude (monitoring)");

@@ -67,12 +67,12 @@ fn poc(k: usize, name: &str) -> String {
     format!("poc[{k}].{name}")
 }
 
-/// Input: active power the DVPP area delivers into POC `k` (1-based).
+/// Input: active power the DVPP area sends through POC `k` (1-based).
 pub fn poc_p(k: usize) -> String {
     poc(k, "p")
 }
 
-/// Input: reactive power the DVPP area delivers into POC `k` (1-based).
+/// Input: reactive power the DVPP area sends through POC `k` (1-based).
 pub fn poc_q(k: usize) -> String {
     poc(k, "q")
 }

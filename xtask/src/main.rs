@@ -80,7 +80,8 @@ tasks:
            768 DER units, shared and separate binaries, 1 and 2 threads, and the same
            systems in libcosim
   demo     bundle, then run case study I (case1_load, case1_cloud) in our master: CSVs and
-           figures in results/, figures in tests/figures/, metrics table into README.md
+           figures in results/, figures in tests/figures/, metrics table into README.md; then
+           case study III with its R/X Monte Carlo (as `case3`)
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
            Rust tests (the win64 binaries under wine among them), then the Python (fmpy) tests
            in target/venv
@@ -549,7 +550,7 @@ fn demo() -> Result {
         "updated the metrics table in README.md; results in {}",
         results.display()
     );
-    Ok(())
+    case3::case3(&root(), &[])
 }
 
 /// The low-pass units of a bundled scenario (ADPF time constant and order from their FMUs).

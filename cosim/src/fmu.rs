@@ -233,6 +233,67 @@ fn err<T>(m: impl Into<String>) -> Result<T, Error> {
     Err(Error(m.into()))
 }
 
+/// Unpack the entries of `archive` whose names pass `keep` into `dir` (names that would leave
+/// `dir` are refused).
+fn unpack(
+    archive: &mut zip::ZipArchive<std::fs::File>,
+    dir: &Path,
+    keep: impl Fn(&str) -> bool,
+) -> Result<(), String> {
+    for i in 0..archive.len() {
+        let mut entry = archive.by_index(i).map_err(|e| e.to_string())?;
+        if !keep(entry.name()) {
+            continue;
+        }
+        let rel = entry.enclosed_name().ok_or(format!(
+            "entry '{}' leaves the FMU's directory",
+            entry.name()
+        ))?;
+        let out = dir.join(rel);
+        let made = |e: std::io::Error| format!("{}: {e}", out.display());
+        if entry.is_dir() {
+            std::fs::create_dir_all(&out).map_err(made)?;
+            continue;
+        }
+        if let Some(parent) = out.parent() {
+            std::fs::create_dir_all(parent).map_err(made)?;
+        }
+        let mut file = std::fs::File::create(&out).map_err(made)?;
+        std::io::copy(&mut entry, &mut file).map_err(made)?;
+    }
+    Ok(())
+}
+
+/// With the archive's model description unpacked in `dir`: the description and a loaded
+/// library identical to the archive's binary, if there is one (and the FMU may share it).
+fn twin_in(
+    archive: &mut zip::ZipArchive<std::fs::File>,
+    dir: &Path,
+) -> Result<Option<(ModelDescription, Arc<Library>)>, String> {
+    let Ok(xml) = std::fs::read_to_string(dir.join("modelDescription.xml")) else {
+        return Ok(None);
+    };
+    let Ok(description) = ModelDescription::from_xml(&xml) else {
+        return Ok(None);
+    };
+    let once = description
+        .co_simulation
+        .as_ref()
+        .is_some_and(|cs| cs.can_be_instantiated_only_once_per_process);
+    let Some(id) = description.model_identifier().map(str::to_owned) else {
+        return Ok(None);
+    };
+    let Ok(mut entry) = archive.by_name(&format!("binaries/linux64/{id}.so")) else {
+        return Ok(None);
+    };
+    if once || candidates(&id, entry.size()).is_empty() {
+        return Ok(None);
+    }
+    let mut bytes = Vec::with_capacity(entry.size() as usize);
+    std::io::Read::read_to_end(&mut entry, &mut bytes).map_err(|e| e.to_string())?;
+    Ok(Fmu::twin(&id, &bytes).map(|library| (description, library)))
+}
+
 fn unique_dir(stem: &str) -> PathBuf {
     use std::sync::atomic::AtomicU64;
     static COUNTER: AtomicU64 = AtomicU64::new(0);
@@ -247,19 +308,42 @@ impl Fmu {
         Fmu::load_with(path, Sharing::Shared)
     }
 
-    /// [`Fmu::load`] with a choice of sharing.
+    /// [`Fmu::load`] with a choice of sharing. With [`Sharing::Shared`], an FMU whose binary
+    /// is identical to one already loaded is unpacked without its `binaries/` (the model
+    /// description and resources are what its instances use): a thousand copies of one FMU
+    /// write one binary to disk, not a thousand.
     pub fn load_with(path: &Path, sharing: Sharing) -> Result<Fmu, Error> {
+        let at = |e: String| Error(format!("{}: {e}", path.display()));
         let file = std::fs::File::open(path)
             .map_err(|e| Error(format!("cannot open {}: {e}", path.display())))?;
         let mut archive = zip::ZipArchive::new(file)
             .map_err(|e| Error(format!("{} is not an FMU archive: {e}", path.display())))?;
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("fmu");
         let dir = unique_dir(stem);
-        if let Err(e) = archive.extract(&dir) {
-            let _ = std::fs::remove_dir_all(&dir);
-            return err(format!("cannot unpack {}: {e}", path.display()));
+        let binaries = |name: &str| name.starts_with("binaries/");
+        let unpacked = unpack(&mut archive, &dir, |n| !binaries(n)).and_then(|()| match sharing {
+            Sharing::Shared => twin_in(&mut archive, &dir),
+            Sharing::Separate => Ok(None),
+        });
+        let twin = match unpacked {
+            Ok(twin) => twin,
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(&dir);
+                return Err(at(format!("cannot unpack: {e}")));
+            }
+        };
+        if let Some((description, library)) = twin {
+            return Ok(Fmu {
+                description,
+                dir,
+                library,
+            });
         }
-        Fmu::load_dir_with(dir, sharing).map_err(|e| Error(format!("{}: {e}", path.display())))
+        if let Err(e) = unpack(&mut archive, &dir, binaries) {
+            let _ = std::fs::remove_dir_all(&dir);
+            return Err(at(format!("cannot unpack: {e}")));
+        }
+        Fmu::load_dir_with(dir, sharing).map_err(|e| at(e.0))
     }
 
     /// Load an FMU already unpacked in `dir` (the directory is removed when the `Fmu` drops, or
@@ -317,6 +401,16 @@ impl Fmu {
         }
     }
 
+    /// A live library offered with identifier `id` whose binary is `bytes`, byte for byte.
+    fn twin(id: &str, bytes: &[u8]) -> Option<Arc<Library>> {
+        candidates(id, bytes.len() as u64).into_iter().find(|l| {
+            l.offered
+                .as_ref()
+                .and_then(Offered::bytes)
+                .is_some_and(|b| b == bytes)
+        })
+    }
+
     /// The library already loaded from identical bytes, or `binary` loaded and offered for
     /// sharing. The bytes are compared in full (not by a hash, which could collide), and only
     /// with libraries of the same identifier and length: a binary without such a twin is not
@@ -326,18 +420,11 @@ impl Fmu {
         let at = |e: std::io::Error| Error(format!("cannot read {}: {e}", binary.display()));
         let file = std::fs::File::open(binary).map_err(at)?;
         let len = file.metadata().map_err(at)?.len();
-        let twins = candidates(id, len);
         let bytes = OnceLock::new();
-        if !twins.is_empty() {
+        if !candidates(id, len).is_empty() {
             let mine = std::fs::read(binary).map_err(at)?;
-            let same = |l: &&Arc<Library>| {
-                l.offered
-                    .as_ref()
-                    .and_then(Offered::bytes)
-                    .is_some_and(|b| b == mine.as_slice())
-            };
-            if let Some(l) = twins.iter().find(same) {
-                return Ok(Arc::clone(l));
+            if let Some(l) = Fmu::twin(id, &mine) {
+                return Ok(l);
             }
             let _ = bytes.set(Ok(mine));
         }

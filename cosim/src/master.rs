@@ -145,6 +145,8 @@ pub struct Outcome {
     /// Wall time of reading the system and loading its FMUs, and of initializing and stepping.
     pub load_time: std::time::Duration,
     pub run_time: std::time::Duration,
+    /// Of `run_time`, the steps and samples after initialization ([`System::advance_time`]).
+    pub advance_time: std::time::Duration,
     /// Components, and the libraries they run in (fewer when identical binaries are shared).
     pub units: usize,
     pub libraries: usize,
@@ -205,6 +207,7 @@ pub fn run_on(
         system.stepping_threads(),
     );
     let (end, samples, simulated) = system.simulate_with(opts, algorithm, observers)?;
+    let advance_time = system.advance_time();
     Ok(Outcome {
         end,
         warnings: system.warnings,
@@ -213,6 +216,7 @@ pub fn run_on(
         columns,
         load_time,
         run_time: started.elapsed() - load_time,
+        advance_time,
         units,
         libraries,
         threads,
@@ -302,6 +306,8 @@ pub struct System {
     pool: Option<pool::Pool>,
     /// Wall time spent in [`Coupling::step_all`] during the last run.
     step_time: std::time::Duration,
+    /// Wall time of the last run after initialization: its steps and samples.
+    advance_time: std::time::Duration,
 }
 
 fn variable(md: &ModelDescription, comp: &str, name: &str) -> Result<(Var, Causality), Error> {
@@ -878,6 +884,7 @@ impl System {
             threads: 1,
             pool: None,
             step_time: std::time::Duration::ZERO,
+            advance_time: std::time::Duration::ZERO,
         })
     }
 
@@ -898,6 +905,12 @@ impl System {
     /// the system's threads; the rest stays on the calling thread.
     pub fn step_time(&self) -> std::time::Duration {
         self.step_time
+    }
+
+    /// Wall time of the last run from the end of initialization to the last sample: what a
+    /// run costs per step, loading and initialization aside.
+    pub fn advance_time(&self) -> std::time::Duration {
+        self.advance_time
     }
 
     /// The loaded FMU of the component `name`.
@@ -1071,6 +1084,7 @@ impl System {
         let (start, stop, step) = self.experiment(opts)?;
         let threads = self.stepping_threads();
         self.step_time = std::time::Duration::ZERO;
+        self.advance_time = std::time::Duration::ZERO;
         self.pool = if threads > 1 {
             let pool = pool::Pool::new(threads)
                 .map_err(|e| Error(format!("cannot start {threads} stepping threads: {e}")))?;
@@ -1133,7 +1147,9 @@ impl System {
         self.initialize(span.start, span.stop)
             .map_err(|e| Error(format!("during initialization: {e}")))?;
         algorithm.start(&mut Coupling { system: self })?;
+        let started = std::time::Instant::now();
         let result = self.advance(span, algorithm, observers, tally);
+        self.advance_time = started.elapsed();
         if let Some(report) = algorithm.finish(&mut Coupling { system: self }) {
             eprintln!("cosim: {report}");
         }

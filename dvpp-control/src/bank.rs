@@ -137,11 +137,10 @@ impl ParticipationBank {
     /// Advance by `h` with `u` held over the step; returns the shares at the end of the step.
     pub fn step(&mut self, u: f64, h: f64) -> Result<Vec<f64>> {
         check_finite("bank input", u)?;
-        let y = if self.specs.is_empty() {
-            DVector::zeros(1)
-        } else {
-            self.sim.step_all(u, h)
-        };
-        Ok(self.compose(u, &y))
+        if self.specs.is_empty() {
+            return Ok(self.compose(u, &DVector::zeros(1)));
+        }
+        self.sim.step_all(u, h);
+        Ok(self.compose(u, self.sim.last_outputs()))
     }
 }

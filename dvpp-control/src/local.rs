@@ -433,8 +433,8 @@ impl ShapedModel {
 
     /// Advance by `h` with `u` held; returns `y = m F u` at the end of the step.
     pub fn step(&mut self, u: f64, h: f64) -> f64 {
-        let y = self.sim.step_all(u, h);
-        self.combine(&y)
+        self.sim.step_all(u, h);
+        self.combine(self.sim.last_outputs())
     }
 
     /// `m(jω) F(jω)` of the realization at the current gains.

@@ -293,6 +293,10 @@ pub struct LtiSimulator {
     hold: Hold,
     u_prev: f64,
     cache: Option<Discretization>,
+    /// The outputs of the last [`LtiSimulator::step_all`] (a buffer: stepping allocates
+    /// nothing).
+    #[serde(skip)]
+    y: DVector<f64>,
 }
 
 impl LtiSimulator {
@@ -305,6 +309,7 @@ impl LtiSimulator {
             hold,
             u_prev: 0.0,
             cache: None,
+            y: DVector::zeros(0),
         }
     }
 
@@ -339,7 +344,7 @@ impl LtiSimulator {
     }
 
     /// Overwrite the state (and the previous input used by the first-order hold).
-    pub fn set_state(&mut self, x: DVector<f64>, u_prev: f64) -> Result<()> {
+    pub fn set_state(&mut self, x: &[f64], u_prev: f64) -> Result<()> {
         if x.len() != self.sys.order() {
             return Err(DvppError::DimensionMismatch {
                 what: "state".into(),
@@ -347,7 +352,7 @@ impl LtiSimulator {
                 found: x.len(),
             });
         }
-        self.x = x;
+        self.x.copy_from_slice(x);
         self.u_prev = u_prev;
         Ok(())
     }
@@ -404,9 +409,21 @@ impl LtiSimulator {
     }
 
     /// Advance by `h` (ignored unless `h > 0`) and return all outputs at the end of the step.
-    pub fn step_all(&mut self, u: f64, h: f64) -> DVector<f64> {
+    pub fn step_all(&mut self, u: f64, h: f64) -> &DVector<f64> {
         self.advance(u, h);
-        self.output(u)
+        let (c, d, x) = (&self.sys.c, &self.sys.d, &self.x);
+        if self.y.len() != c.nrows() {
+            self.y = DVector::zeros(c.nrows());
+        }
+        for (i, y) in self.y.iter_mut().enumerate() {
+            *y = (0..x.len()).map(|j| c[(i, j)] * x[j]).sum::<f64>() + d[i] * u;
+        }
+        &self.y
+    }
+
+    /// The outputs [`LtiSimulator::step_all`] returned last (empty before the first).
+    pub fn last_outputs(&self) -> &DVector<f64> {
+        &self.y
     }
 
     /// Advance by `h` and return the first output.
@@ -468,7 +485,7 @@ mod tests {
         )
         .unwrap();
         let mut sim = LtiSimulator::new(sys, Hold::Zero);
-        sim.set_state(DVector::from_element(1, 0.3), 0.0).unwrap();
+        sim.set_state(&[0.3], 0.0).unwrap();
         for h in [1e-4, 1e-3, 1e-2, 0.5] {
             let x0 = sim.state()[0];
             let u = 2.0;

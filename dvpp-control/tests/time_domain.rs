@@ -277,9 +277,9 @@ fn discretization_cache_follows_step_size() {
         let h = if k % 2 == 0 { 1e-3 } else { 1e-2 };
         let ya = a.step(1.0, h);
         let mut fresh = LtiSimulator::new(b.system().clone(), Hold::Zero);
-        fresh.set_state(b.state().clone(), 0.0).unwrap();
+        fresh.set_state(b.state().as_slice(), 0.0).unwrap();
         let yb = fresh.step(1.0, h);
-        b.set_state(fresh.state().clone(), 1.0).unwrap();
+        b.set_state(fresh.state().as_slice(), 1.0).unwrap();
         assert_eq!(ya, yb);
     }
 }

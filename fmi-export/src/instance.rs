@@ -356,13 +356,14 @@ impl<M: Model> Instance<M> {
                 .max(status);
         }
         let status = ctx.status;
-        if let Some((vr, x)) = self
-            .core
-            .store
-            .reals
+        // One pass without early exit (which vectorizes) tells whether any value went
+        // non-finite; only then is it looked for.
+        let reals = &self.core.store.reals;
+        let any_bad = reals.iter().fold(false, |bad, x| bad | !x.is_finite());
+        if let Some((vr, x)) = reals
             .iter()
             .enumerate()
-            .find(|(_, x)| !x.is_finite())
+            .find(|(_, x)| any_bad && !x.is_finite())
         {
             return self.error(format!(
                 "fmi2DoStep at t = {t}: '{}' became {x}; the model cannot continue",

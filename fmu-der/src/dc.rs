@@ -114,11 +114,9 @@ pub struct DcSide {
 impl DcSide {
     /// At the nominal dc voltage, supplying `p_ac` (and the losses) in steady state.
     pub fn new(params: DcParams, p_ac: f64) -> Self {
-        let mut free = LtiSimulator::new(params.model(false), Hold::Zero);
-        let mut held = LtiSimulator::new(params.model(true), Hold::Zero);
-        let x = DVector::zeros(4);
-        free.set_state(x.clone(), 0.0).expect("dc state");
-        held.set_state(x, 0.0).expect("dc state");
+        // Both start at the zero state (the operating point).
+        let free = LtiSimulator::new(params.model(false), Hold::Zero);
+        let held = LtiSimulator::new(params.model(true), Hold::Zero);
         DcSide {
             params,
             free,
@@ -174,7 +172,7 @@ impl DcSide {
     pub fn step(&mut self, p_ac: f64, h: f64, cap: f64) -> DcLimits {
         let p = self.params;
         let floor = if p.storage { -cap } else { 0.0 };
-        let x0 = self.x().clone();
+        let x0: [f64; 4] = self.x().as_slice().try_into().expect("4 dc states");
         let (src0, u) = (self.p_src(), p_ac - self.p0);
         // Held at a bound while the command pushes beyond it.
         let pushes = {
@@ -188,9 +186,9 @@ impl DcSide {
         } else {
             &mut self.free
         };
-        sim.set_state(x0.clone(), u).expect("dc state");
+        sim.set_state(&x0, u).expect("dc state");
         sim.step_all(u, h);
-        let mut x = sim.state().clone();
+        let mut x: [f64; 4] = sim.state().as_slice().try_into().expect("4 dc states");
         // Energy account of the step, exact for the held input.
         self.e_src += (x[2] - x0[2]) + (self.p0 + p.g) * h;
         self.e_loss += 2.0 * p.g / p.c * (x[3] - x0[3]) + p.g * h;
@@ -202,7 +200,7 @@ impl DcSide {
         if limited != src {
             x[0] = limited - self.p0 - p.g;
         }
-        self.free.set_state(x, u).expect("dc state");
+        self.free.set_state(&x, u).expect("dc state");
         DcLimits {
             source: self.at_bound,
         }

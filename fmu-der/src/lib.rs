@@ -249,7 +249,8 @@ pub struct Der {
     rot_rx: Real,
     p_rot: Real,
     q_rot: Real,
-    rt: Option<Runtime>,
+    /// Boxed: each step takes it out and puts it back, which moves only the pointer.
+    rt: Option<Box<Runtime>>,
 }
 
 /// Structure of the DER: which of the paper's units it is.
@@ -591,11 +592,8 @@ impl Der {
                     ));
                 }
                 let mut pll = LtiSimulator::new(pll_model(kp, ki, s[self.f_nom]), Hold::Zero);
-                pll.set_state(
-                    DVector::from_column_slice(&[0.0, s[self.v_angle]]),
-                    s[self.v_angle],
-                )
-                .expect("PLL state");
+                pll.set_state(&[0.0, s[self.v_angle]], s[self.v_angle])
+                    .expect("PLL state");
                 let following = Following {
                     fp,
                     pll,
@@ -1379,7 +1377,7 @@ impl Model for Der {
         // Initialization may run several times in initialization mode; a warning already given
         // in this episode is not repeated (a reset starts a new episode with `rt` = None).
         let again = self.rt.take().map(|rt| rt.warned_gains);
-        self.rt = Some(self.build(s, ctx, again)?);
+        self.rt = Some(Box::new(self.build(s, ctx, again)?));
         Ok(())
     }
 
@@ -1611,20 +1609,20 @@ impl Der {
         let lim = &mut rt.limit;
         let t1 = t + h;
         lim.current
-            .record(t1, current_limit, request, "current limit I_max", ctx);
+            .record(t1, current_limit, request, || "current limit I_max", ctx);
         let (lo, hi) = budget;
         lim.dc.record(
             t1,
             dc_limit,
             rt.dc.v_dc(),
-            &format!("dc-link power budget [{lo:.3}, {hi:.3}] pu (v_dc)"),
+            || format!("dc-link power budget [{lo:.3}, {hi:.3}] pu (v_dc)"),
             ctx,
         );
         lim.modulation.record(
             t1,
             modulation,
             s[self.e_max] * rt.dc.v_dc(),
-            "modulation limit E_max * v_dc",
+            || "modulation limit E_max * v_dc",
             ctx,
         );
         self.step_dc(rt, s, t, h, ctx);
@@ -1643,7 +1641,7 @@ impl Der {
             t + h,
             dc.source,
             rt.dc.p_src(),
-            &format!("primary source at its limit (P_avail = {cap:.4} pu on S_rated)"),
+            || format!("primary source at its limit (P_avail = {cap:.4} pu on S_rated)"),
             ctx,
         );
         self.write_dc(s, rt);
@@ -1681,7 +1679,7 @@ impl Der {
                     }
                     Channel::Following(g) => {
                         g.pll
-                            .set_state(DVector::from_column_slice(&[0.0, v_angle]), v_angle)
+                            .set_state(&[0.0, v_angle], v_angle)
                             .expect("PLL state");
                         g.current = (0.0, 0.0);
                     }

@@ -125,21 +125,31 @@ impl Episode {
     }
 
     /// Record the limit at time `t`: `acting` with the measure `value` (e.g. the requested
-    /// current in pu of `I_max`); `what` names the limit in the log lines.
-    pub fn record(&mut self, t: f64, acting: bool, value: f64, what: &str, ctx: &mut Context) {
+    /// current in pu of `I_max`); `what` names the limit in the log lines (called only when
+    /// one is written: formatting a label every step would cost more than the step).
+    pub fn record<S: std::fmt::Display>(
+        &mut self,
+        t: f64,
+        acting: bool,
+        value: f64,
+        what: impl FnOnce() -> S,
+        ctx: &mut Context,
+    ) {
         if acting {
             if !self.active {
                 self.active = true;
                 self.worst = value;
-                ctx.warn(format!("{what} acts from t = {t:.4} s ({value:.3})"));
+                ctx.warn(format!("{} acts from t = {t:.4} s ({value:.3})", what()));
             }
             self.worst = self.worst.max(value);
             self.last = t;
         } else if self.active && t - self.last >= RELEASE {
             self.active = false;
             ctx.event(format!(
-                "{what} released at t = {t:.4} s (acted until t = {:.4} s; worst {:.3})",
-                self.last, self.worst
+                "{} released at t = {t:.4} s (acted until t = {:.4} s; worst {:.3})",
+                what(),
+                self.last,
+                self.worst
             ));
         }
     }

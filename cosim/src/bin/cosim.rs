@@ -221,16 +221,17 @@ fn main() -> ExitCode {
     match &outcome.end {
         End::Completed => {
             let run = outcome.run_time.as_secs_f64();
+            let steps = outcome.samples.saturating_sub(1);
             println!(
-                "{name}: loaded in {:.3} s; initialized and simulated {} s in {run:.3} s ({:.0}x real time)",
+                "{name}: loaded in {:.3} s; initialized and simulated {} s in {run:.3} s ({:.0}x real time); {:.2} µs per step after initialization",
                 outcome.load_time.as_secs_f64(),
                 outcome.simulated,
-                outcome.simulated / run
+                outcome.simulated / run,
+                outcome.advance_time.as_secs_f64() * 1e6 / steps.max(1) as f64
             );
             if let Some(out) = &out {
                 println!(
-                    "{name}: {} steps, {} columns -> {}",
-                    outcome.samples.saturating_sub(1),
+                    "{name}: {steps} steps, {} columns -> {}",
                     outcome.columns,
                     out.display()
                 );

@@ -244,6 +244,9 @@ pub(crate) struct PocRt {
     pub bus: usize,
     /// Branch indices whose flows into `bus` are summed.
     pub branches: Vec<usize>,
+    /// Slot indices (0-based) whose injections are summed (a DVPP's PCC, `[[dvpp_pcc]]`).
+    #[serde(default)]
+    pub slots: Vec<usize>,
     pub tf: f64,
 }
 
@@ -318,6 +321,9 @@ pub struct Outputs {
     /// Per point of coupling (case `[[poc]]`): the power its branches deliver into its bus
     /// (positive: the area feeds the grid), its bus voltage, frequency and angle.
     pub poc: Vec<PccOutput>,
+    /// Per DVPP PCC (case `[[dvpp_pcc]]`): its slots' summed injection, its bus voltage,
+    /// frequency and angle.
+    pub dvpp_pcc: Vec<PccOutput>,
     /// Active and reactive power the loads inside the POC area draw (0 without POCs), pu.
     pub area_p_load: f64,
     pub area_q_load: f64,
@@ -468,7 +474,7 @@ impl Grid {
         }
         let pcc_state = x.len();
         x.push(0.0);
-        let pocs: Vec<PocRt> = case
+        let mut pocs: Vec<PocRt> = case
             .pocs
             .iter()
             .map(|p| {
@@ -481,12 +487,24 @@ impl Grid {
                         .iter()
                         .map(|name| branches.iter().position(|b| &b.name == name).unwrap())
                         .collect(),
+                    slots: Vec::new(),
                     tf: p.f_filter_t,
                 }
             })
             .collect();
-        let poc_angle = pocs.iter().map(|p| v[p.bus].arg()).collect();
         let area = area_buses(n, &branches, &pocs);
+        // The DVPPs' PCCs follow the POCs (filter states, angles), outside the area.
+        for p in &case.dvpp_pccs {
+            let bus = idx[&p.bus];
+            x.push(v[bus].arg());
+            pocs.push(PocRt {
+                bus,
+                branches: Vec::new(),
+                slots: p.slots.iter().map(|k| k - 1).collect(),
+                tf: p.f_filter_t,
+            });
+        }
+        let poc_angle = pocs.iter().map(|p| v[p.bus].arg()).collect();
         // DER slots
         let mut ders = Vec::new();
         for (k, d) in case.ders.iter().enumerate() {
@@ -568,11 +586,14 @@ impl Grid {
             .flat_map(|(j, m)| m.time_constants(j, wb))
             .collect();
         tcs.push(TimeConstant::new("pcc.f_filter_t".into(), pcc_tf));
+        let n_poc = case.pocs.len();
         for (k, p) in pocs.iter().enumerate() {
-            tcs.push(TimeConstant::new(
-                format!("poc[{}].f_filter_t", k + 1),
-                p.tf,
-            ));
+            let name = if k < n_poc {
+                format!("poc[{}].f_filter_t", k + 1)
+            } else {
+                format!("pcc_{}.f_filter_t", case.dvpp_pccs[k - n_poc].name)
+            };
+            tcs.push(TimeConstant::new(name, p.tf));
         }
         let (h_limit, step_note) = choose_internal_step(&tcs)?;
         let mut g = Grid {
@@ -880,6 +901,9 @@ impl Grid {
         };
         for (k, p) in self.pocs.iter().enumerate() {
             let mut s = C64::new(0.0, 0.0);
+            for &j in &p.slots {
+                s += self.der_power(&self.ders[j]);
+            }
             for &b in &p.branches {
                 let br = &self.branches[b];
                 if br.in_service {
@@ -889,13 +913,18 @@ impl Grid {
                 }
             }
             let th = self.poc_angle[k];
-            out.poc.push(PccOutput {
+            let measured = PccOutput {
                 p: s.re,
                 q: s.im,
                 v: self.v[p.bus].norm(),
                 f: 1.0 + (th - self.x[self.pcc_state + 1 + k]) / (p.tf * self.wb),
                 angle: th,
-            });
+            };
+            if k < self.case.pocs.len() {
+                out.poc.push(measured);
+            } else {
+                out.dvpp_pcc.push(measured);
+            }
         }
         for &i in &self.area {
             let vm2 = self.v[i].norm_sqr();

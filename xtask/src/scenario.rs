@@ -966,7 +966,13 @@ impl Job<'_, '_> {
         }
         let pcc = match &name {
             None => &grid.pf.pcc,
-            Some(_) => &grid.pf.dvpp_pcc[g],
+            Some(n) => grid
+                .case
+                .dvpp_pccs
+                .iter()
+                .position(|p| &p.name == n)
+                .and_then(|i| grid.pf.dvpp_pcc.get(i))
+                .ok_or(format!("the grid case has no [[dvpp_pcc]] '{n}'"))?,
         };
         for (n, x) in [
             (op::PCC_P, pcc.p),

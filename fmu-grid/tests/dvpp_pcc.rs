@@ -51,10 +51,13 @@ fn two_dvpp_pccs_at_the_case_pcc_bus_add_up_to_it_through_a_load_step() {
     assert!((p1 - p0).abs() > 1e-3, "{p0} -> {p1}");
 }
 
+/// A change to a DVPP PCC.
+type Edit = fn(&mut DvppPcc);
+
 #[test]
 fn bad_dvpp_pccs_are_refused() {
     let base = split(0.02);
-    let cases: [(fn(&mut DvppPcc), &str); 5] = [
+    let cases: [(Edit, &str); 5] = [
         (|p| p.bus = 42, "42"),
         (|p| p.slots = vec![4], "slot 4"),
         (|p| p.slots.clear(), "no slot"),

@@ -818,7 +818,7 @@ impl Job<'_, '_> {
                 entry[k] = i + 1;
             }
         }
-        for k in 0..self.sc.der.len() {
+        for (k, &entry) in entry.iter().enumerate() {
             let g = self.group_of(k);
             let spec = &self.sc.der[k];
             let slot = &grid.case.ders[k];
@@ -857,7 +857,7 @@ impl Job<'_, '_> {
             ders.push(DerUnit {
                 unit: Unit { name, md, start },
                 slot: k + 1,
-                entry: entry[k],
+                entry,
                 operator: groups[g].1.clone(),
                 forming,
                 role,

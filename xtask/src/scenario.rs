@@ -1357,6 +1357,13 @@ mod tests {
     /// Bundle `scenario` with the FMUs described in process instead of built: the system, and
     /// the model description of each component.
     fn bundled(scenario: &Path) -> (ssp::System, BTreeMap<String, ModelDescription>) {
+        try_bundled(scenario).unwrap()
+    }
+
+    /// [`bundled`], or the bundler's error.
+    fn try_bundled(
+        scenario: &Path,
+    ) -> Result<(ssp::System, BTreeMap<String, ModelDescription>), String> {
         let name = name_of(scenario).unwrap();
         let dir =
             std::env::temp_dir().join(format!("xtask-scenario-{}-{name}", std::process::id()));
@@ -1384,10 +1391,10 @@ mod tests {
             mds.insert(component, md.clone());
             Ok(md)
         };
-        let ssp = bundle(scenario, &dir, &mut one).unwrap();
-        let system = ssp::read(&ssp).unwrap().system.clone();
+        let ssp = bundle(scenario, &dir, &mut one);
+        let system = ssp.map(|ssp| ssp::read(&ssp).unwrap().system.clone());
         let _ = std::fs::remove_dir_all(&dir);
-        (system, mds)
+        Ok((system?, mds))
     }
 
     /// Every connection runs from an output to an input of the model descriptions, and every
@@ -1606,6 +1613,30 @@ mod tests {
         let e = bundle(&path, &dir.join("out"), &mut one).unwrap_err();
         let _ = std::fs::remove_dir_all(&dir);
         e
+    }
+
+    #[test]
+    fn a_complement_closing_more_low_pass_units_than_it_can_is_refused() {
+        let dir = std::env::temp_dir().join(format!("xtask-lpf-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("many_lpf.toml");
+        let mut text = String::from(
+            "description = \"many\"\n[experiment]\nstop = 1.0\nstep = 1e-3\n\
+             [grid]\ncase = \"ieee9_dvpp\"\n[dvpp]\nS_dvpp = 96.0\nH = 5.55\nD = 33.33\n\
+             Dq = 0.01\n[operator]\n",
+        );
+        for name in ["wind", "pv", "bess"] {
+            text += &format!("[[der]]\nname = \"{name}\"\npreset = \"{name}\"\n");
+        }
+        // Seven more low-pass units: the BESS would close nine.
+        text += "[[fleet]]\nname = \"w\"\npreset = \"wind\"\ncount = 7\nbuses = [5]\nrating_mva = 70.0\n";
+        std::fs::write(&path, text).unwrap();
+        let e = try_bundled(&path).map(|_| ()).unwrap_err();
+        assert!(
+            e.contains("would close 9 low-pass units") && e.contains("at most 8"),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]

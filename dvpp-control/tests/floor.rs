@@ -1,5 +1,6 @@
-//! The per-unit floor of a grid-forming low-pass unit's dc gain (`mu_min_gfm`): feasible for
-//! any number of units, exact participation sums, every floor respected.
+//! Tests of the per-unit floor of a grid-forming low-pass unit's dc gain (`mu_min_gfm`).
+//!
+//! Feasible for any number of units, exact participation sums, every floor respected.
 
 use dvpp_control::{
     mu_min_gfm, renormalize_with_floor, renormalize_with_floors, Adpf, CaseStudyI, DvppError,

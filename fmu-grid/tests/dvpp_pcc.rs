@@ -1,5 +1,6 @@
-//! Several DVPPs' PCCs (`[[dvpp_pcc]]`): each sums its own slots and measures its bus as `[pcc]`
-//! does, and bad entries are refused.
+//! Tests of the grid's PCCs of several DVPPs (`[[dvpp_pcc]]`).
+//!
+//! Each sums its own slots and measures its bus as `[pcc]` does, and bad entries are refused.
 
 use fmu_grid::case::DvppPcc;
 use fmu_grid::{Case, Grid};

@@ -1,5 +1,7 @@
-//! Operators of many units: no cap on their number, the per-unit floor keeps 24 to 1000 equal
-//! grid-forming low-pass units feasible with exact sums, and a step's cost grows linearly.
+//! Tests of operators serving many units (24 to 1000).
+//!
+//! No cap on their number, the per-unit floor keeps 24 to 1000 equal grid-forming low-pass
+//! units feasible with exact sums, and a step's cost grows linearly.
 
 use fmi_export::harness::Harness;
 use fmi_export::{Config, Status};

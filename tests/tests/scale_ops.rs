@@ -1,4 +1,6 @@
-//! Fleets and several DVPPs end to end in our master: `scale_fleet200` (one DVPP of 200
+//! End-to-end tests of fleets and several DVPPs with operators of their own, in our master.
+//!
+//! `scale_fleet200` (one DVPP of 200
 //! grid-forming static-ADPF units over four buses) and `scale_two_dvpps` (case study I's DVPP
 //! and a 24-unit fleet, each with its own operator) complete; every operator keeps Σμ_p = Σμ_q = 1
 //! over its own units at every output row, every unit's μ_p respects its own floor

@@ -55,10 +55,8 @@ pub fn reactive_gains(s_rated: &[f64], p: &[f64]) -> Result<Vec<f64>> {
 }
 
 /// Normalize non-negative weights to gains summing to 1, proportional to the weights, with a
-/// floor `mu_min` on the units flagged in `floored` (the grid-forming low-pass units, see
-/// [`crate::local::MU_MIN_GFM`]). Floored units that would fall below the floor are pinned to
-/// it and the remaining budget is shared proportionally among the others (iterated until no
-/// new unit hits the floor). Errors if the floors alone exceed 1 or nothing can carry the gain.
+/// floor `mu_min` on the units flagged in `floored`: [`renormalize_with_floors`] with one floor
+/// for all flagged units (0 for the others).
 pub fn renormalize_with_floor(weights: &[f64], floored: &[bool], mu_min: f64) -> Result<Vec<f64>> {
     if weights.len() != floored.len() {
         return Err(DvppError::DimensionMismatch {
@@ -67,41 +65,72 @@ pub fn renormalize_with_floor(weights: &[f64], floored: &[bool], mu_min: f64) ->
             found: floored.len(),
         });
     }
-    check_nonneg("participation weight", weights)?;
     check_finite("mu_min", mu_min)?;
+    let floors: Vec<f64> = floored
+        .iter()
+        .map(|&f| if f { mu_min } else { 0.0 })
+        .collect();
+    renormalize_with_floors(weights, &floors)
+}
+
+/// Normalize non-negative weights to gains summing to 1, proportional to the weights, with a
+/// floor `floors[i]` on unit `i` (0: none; the grid-forming low-pass units' own floors, see
+/// [`crate::local::mu_min_gfm`]). Units that would fall below their floor are pinned to it and
+/// the remaining budget `1 − Σ_pinned μ_min,i` is shared proportionally among the others
+/// (iterated until no new unit hits its floor; each round is linear in the number of units and
+/// pins at least one more, and in practice one or two rounds settle). If every unit is pinned,
+/// what is left of the budget goes to them in proportion to their floors. Errors if the floors
+/// alone exceed 1 or there are no units.
+pub fn renormalize_with_floors(weights: &[f64], floors: &[f64]) -> Result<Vec<f64>> {
+    if weights.len() != floors.len() {
+        return Err(DvppError::DimensionMismatch {
+            what: "floors".into(),
+            expected: weights.len(),
+            found: floors.len(),
+        });
+    }
+    check_nonneg("participation weight", weights)?;
+    check_nonneg("μ_min", floors)?;
     let n = weights.len();
-    let n_floor = floored.iter().filter(|f| **f).count();
-    if n == 0 || n_floor as f64 * mu_min > 1.0 {
+    let floor_sum: f64 = floors.iter().sum();
+    if n == 0 || floor_sum > 1.0 {
+        let n_floor = floors.iter().filter(|f| **f > 0.0).count();
         return Err(DvppError::InfeasibleGains {
-            reason: format!("{n_floor} floored units × μ_min {mu_min} exceeds 1 (or no units)"),
+            reason: format!(
+                "{n_floor} floored units: their floors sum to {floor_sum} > 1 (or no units)"
+            ),
         });
     }
     let mut pinned = vec![false; n];
+    let mut mu = vec![0.0; n];
     loop {
-        let n_pinned = pinned.iter().filter(|p| **p).count();
-        let budget = 1.0 - n_pinned as f64 * mu_min;
-        let free: Vec<usize> = (0..n).filter(|i| !pinned[*i]).collect();
-        let mut mu = vec![0.0; n];
+        let mut budget = 1.0;
+        let mut w = 0.0;
+        let mut n_free = 0usize;
         for i in 0..n {
             if pinned[i] {
-                mu[i] = mu_min;
+                budget -= floors[i];
+            } else {
+                w += weights[i];
+                n_free += 1;
             }
         }
-        if free.is_empty() {
-            let extra = budget / n_pinned as f64;
-            return Ok(mu.iter().map(|m| m + extra).collect());
+        if n_free == 0 {
+            // Only floored units are pinned, and their floors sum to at most 1.
+            return Ok(floors.iter().map(|f| f + budget * f / floor_sum).collect());
         }
-        let w: f64 = free.iter().map(|i| weights[*i]).sum();
-        for &i in &free {
+        let mut changed = false;
+        for i in 0..n {
+            if pinned[i] {
+                mu[i] = floors[i];
+                continue;
+            }
             mu[i] = if w > 0.0 {
                 budget * weights[i] / w
             } else {
-                budget / free.len() as f64
+                budget / n_free as f64
             };
-        }
-        let mut changed = false;
-        for &i in &free {
-            if floored[i] && mu[i] < mu_min {
+            if floors[i] > 0.0 && mu[i] < floors[i] {
                 pinned[i] = true;
                 changed = true;
             }

@@ -29,7 +29,10 @@ pub mod ss;
 pub mod tdes;
 pub mod tf;
 
-pub use adaptation::{active_gains, reactive_capacity, reactive_gains, renormalize_with_floor};
+pub use adaptation::{
+    active_gains, reactive_capacity, reactive_gains, renormalize_with_floor,
+    renormalize_with_floors,
+};
 pub use adpf::{
     design_grid, eval_set, log_grid, max_participation_error, participation_error, Adpf,
     LowPassSpec,
@@ -40,7 +43,10 @@ pub use checks::{
     check_voltage_aggregation, validate_design, DesignReport, HybridReport,
 };
 pub use error::{DvppError, Result};
-pub use local::{GflFpModel, GfmPfModel, ShapedModel, VqModel, MU_MIN_GFM};
+pub use local::{
+    floor_scale, mu_min_gfm, GflFpModel, GfmPfModel, ShapedModel, VqModel, MU_FLOOR_KAPPA,
+    MU_MIN_GFM,
+};
 pub use nalgebra::Complex;
 pub use presets::CaseStudyI;
 pub use rotation::Rotation;

@@ -20,9 +20,49 @@ use serde::{Deserialize, Serialize};
 ///
 /// `T_i^pf = (τ s + 1)/(μ (H s + D))` grows like `1/μ`: a grid-forming unit cannot have zero
 /// p-f participation (it would impose an unbounded frequency for any power). Gains sent to a
-/// grid-forming LPF unit are clamped to `[MU_MIN_GFM, 1]` at run time, rejected below it at
-/// design time, and a gain set is made consistent with [`crate::adaptation::renormalize_with_floor`].
+/// grid-forming LPF unit are clamped to `[μ_min, 1]` at run time, rejected below it at design
+/// time, and a gain set is made consistent with [`crate::adaptation::renormalize_with_floors`].
+/// This is the floor of a unit that is large in its DVPP; a small unit's floor scales with its
+/// share of the DVPP rating, see [`mu_min_gfm`].
 pub const MU_MIN_GFM: f64 = 0.05;
+
+/// Lower bound `κ` on a grid-forming low-pass unit's p-f stiffness per unit of its own rating,
+/// relative to the DVPP's: see [`mu_min_gfm`].
+pub const MU_FLOOR_KAPPA: f64 = 0.25;
+
+/// The floor `μ_min,i = min(MU_MIN_GFM, κ S_i/S_dvpp)` of a grid-forming low-pass unit of rating
+/// `s_rated` in a DVPP of base `s_dvpp` (both MVA), `κ` = [`MU_FLOOR_KAPPA`].
+///
+/// On its own rating, the unit's local reference `Δf = −T_i^pf Δp_i` reads
+/// `Δf = −(τ s + 1)/((μ_i S_dvpp/S_i)(H s + D)) Δp_i,own`: its p-f stiffness per unit of its own
+/// rating is `μ_i S_dvpp/S_i` times the DVPP's. What a grid-forming unit must not lose is that
+/// stiffness, so the floor bounds it below by `κ`: `μ_i ≥ κ S_i/S_dvpp`. A fixed floor would make
+/// `n` equal units infeasible as soon as `n μ_min > 1` (20 units at 0.05), whereas this one sums
+/// to at most `κ Σ S_i/S_dvpp` and stays feasible for any number of units as long as the
+/// floored units' ratings add up to less than `S_dvpp/κ` (four times the DVPP base). Units of
+/// at least `MU_MIN_GFM/κ` = 20 % of `S_dvpp` keep the fixed floor `MU_MIN_GFM`, so DVPPs of a
+/// few large units (case study I: 46 and 73 MVA in 96 MVA) are unchanged. Invalid ratings
+/// (non-positive, non-finite) give `MU_MIN_GFM`.
+pub fn mu_min_gfm(s_rated: f64, s_dvpp: f64) -> f64 {
+    MU_MIN_GFM * floor_scale(s_rated, s_dvpp)
+}
+
+/// The factor `min(1, κ S_i/(MU_MIN_GFM S_dvpp))` by which a unit's floor is below the floor of a
+/// large unit: [`mu_min_gfm`] is `MU_MIN_GFM` times it, and an operator whose floor for large
+/// units is `mu_min` (≥ `MU_MIN_GFM`) floors unit `i` at `mu_min` times it, never below the
+/// DER's own floor. 1 for invalid ratings.
+pub fn floor_scale(s_rated: f64, s_dvpp: f64) -> f64 {
+    let share = s_rated / s_dvpp;
+    if share.is_finite() && share > 0.0 {
+        (MU_FLOOR_KAPPA * share / MU_MIN_GFM).min(1.0)
+    } else {
+        1.0
+    }
+}
+
+fn default_mu_min() -> f64 {
+    MU_MIN_GFM
+}
 
 /// Relative tolerance used to detect the intended origin pole (integrator) of zero-dc-gain
 /// grid-forming units in stability checks.
@@ -62,7 +102,8 @@ enum GfmPfRealization {
 ///
 /// * **Low-pass** (`d = 1`: `T_i^pf = (τ s + 1)/(μ (H s + D))`, biproper): the LTI part
 ///   `G = (τ s + 1)^d T_pf` is simulated and driven by `Δp_i/μ(t)`, i.e. `μ(t)` enters at the
-///   input. `μ` is kept in `[MU_MIN_GFM, 1]`.
+///   input. `μ` is kept in `[μ_min, 1]` (`MU_MIN_GFM` unless built with
+///   [`GfmPfModel::with_floor`]).
 /// * **Complement** (`m = c − Σ μ_j L_j`, with `c = 1` in the paper): no inverse is formed;
 ///   `w = (Δp_i + Σ_j μ_j(t) x_j)/c`, `x_j = L_j(w)` (chains `x' = (w − x)/τ_j`),
 ///   `Δf_i = −T_pf w`. This is a feedback loop through the states only (no algebraic loop);
@@ -78,6 +119,9 @@ pub struct GfmPfModel {
     mu: f64,
     lpf_mus: Vec<f64>,
     sim: LtiSimulator,
+    /// Floor of a low-pass unit's dc gain ([`mu_min_gfm`]).
+    #[serde(default = "default_mu_min")]
+    mu_min: f64,
 }
 
 fn complement_gfm_system(
@@ -126,14 +170,27 @@ impl GfmPfModel {
     /// * Complement: realized by feedback (no inverse formed); `T_pf` any proper stable.
     /// * High-/band-pass: `T_pf/m` must be proper.
     pub fn new(tdes: &TDes, adpf: &Adpf) -> Result<Self> {
+        Self::with_floor(tdes, adpf, MU_MIN_GFM)
+    }
+
+    /// As [`GfmPfModel::new`] with the floor `mu_min` in `(0, MU_MIN_GFM]` of a low-pass unit's
+    /// dc gain instead of `MU_MIN_GFM` (a unit's own floor, [`mu_min_gfm`]).
+    pub fn with_floor(tdes: &TDes, adpf: &Adpf, mu_min: f64) -> Result<Self> {
+        check_finite("μ_min", mu_min)?;
+        if !(mu_min > 0.0 && mu_min <= MU_MIN_GFM) {
+            return Err(DvppError::InvalidParameter {
+                what: "μ_min".into(),
+                reason: format!("must be in (0, {MU_MIN_GFM}], got {mu_min}"),
+            });
+        }
         let tpf = tdes.pf().clone();
         match adpf {
             Adpf::LowPass(spec) => {
-                if spec.mu < MU_MIN_GFM {
+                if spec.mu < mu_min {
                     return Err(DvppError::GainOutOfRange {
                         what: "grid-forming low-pass p-f dc gain".into(),
                         value: spec.mu,
-                        min: MU_MIN_GFM,
+                        min: mu_min,
                         max: 1.0,
                     });
                 }
@@ -144,6 +201,7 @@ impl GfmPfModel {
                     lpf_mus: Vec::new(),
                     sim: LtiSimulator::new(g.to_state_space(), Hold::Zero),
                     tpf,
+                    mu_min,
                 })
             }
             Adpf::Complement { share, lpf } => {
@@ -161,6 +219,7 @@ impl GfmPfModel {
                     lpf_mus: mus,
                     sim: LtiSimulator::new(sys, Hold::Zero),
                     tpf,
+                    mu_min,
                 })
             }
             Adpf::HighPass { .. } | Adpf::BandPass { .. } => {
@@ -171,6 +230,7 @@ impl GfmPfModel {
                     lpf_mus: Vec::new(),
                     sim: LtiSimulator::new(t.to_state_space(), Hold::Zero),
                     tpf,
+                    mu_min,
                 })
             }
         }
@@ -195,13 +255,18 @@ impl GfmPfModel {
         }
     }
 
-    /// Set the own dc gain of a low-pass unit, clamped to `[MU_MIN_GFM, 1]`; returns the
+    /// The floor of a low-pass unit's dc gain.
+    pub fn mu_min(&self) -> f64 {
+        self.mu_min
+    }
+
+    /// Set the own dc gain of a low-pass unit, clamped to `[μ_min, 1]`; returns the
     /// applied value. Errors for NaN or for other unit kinds.
     pub fn set_mu(&mut self, mu: f64) -> Result<f64> {
         check_finite("grid-forming dc gain", mu)?;
         match self.real {
             GfmPfRealization::LowPass { .. } => {
-                self.mu = mu.clamp(MU_MIN_GFM, 1.0);
+                self.mu = mu.clamp(self.mu_min, 1.0);
                 Ok(self.mu)
             }
             _ => Err(DvppError::WrongUnitKind {

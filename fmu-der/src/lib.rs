@@ -546,14 +546,16 @@ impl Der {
         let pll_order = s[self.pll_order] as u32;
         let (channel, vq) = match mode {
             GRID_FORMING => {
+                // A grid-forming unit cannot have (near) zero p-f participation: its floor
+                // bounds its p-f stiffness on its own rating (the operator's floor alike).
+                let mu_min = dvpp_control::mu_min_gfm(s[self.s_rated], s[self.s_dvpp]);
                 let adpf = match &adpf_p {
-                    // A grid-forming unit cannot have (near) zero p-f participation.
-                    Adpf::LowPass(spec) if spec.mu < dvpp_control::MU_MIN_GFM => adpf_p
-                        .with_mu(dvpp_control::MU_MIN_GFM)
-                        .expect("valid gain"),
+                    Adpf::LowPass(spec) if spec.mu < mu_min => {
+                        adpf_p.with_mu(mu_min).expect("valid gain")
+                    }
                     a => a.clone(),
                 };
-                let pf = GfmPfModel::new(&tdes, &adpf).map_err(|e| {
+                let pf = GfmPfModel::with_floor(&tdes, &adpf, mu_min).map_err(|e| {
                     err(
                         &order_name,
                         format!("the grid-forming reference T_pf/m is not realizable: {e}"),

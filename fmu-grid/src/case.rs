@@ -290,6 +290,22 @@ pub struct Poc {
     pub f_filter_t: f64,
 }
 
+/// The PCC of one DVPP of several sharing the grid (`[[dvpp_pcc]]`, written by the bundler for a
+/// scenario with named DVPPs): the summed injection of the DVPP's slots and the voltage and
+/// frequency at `bus`, measured as `[pcc]` is (outputs `pcc_<name>.p`, `.q`, `.v`, `.f`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DvppPcc {
+    /// The DVPP's name: letters, digits and `_`.
+    pub name: String,
+    pub bus: u32,
+    /// 1-based DER slot indices of the DVPP's units.
+    pub slots: Vec<usize>,
+    /// Time constant of the first-order filter on the angle derivative, s (as `[pcc]`).
+    #[serde(default = "default_tf")]
+    pub f_filter_t: f64,
+}
+
 /// The lines whose R/X ratio is a run parameter (`mv.rx`, `mv.line[k].rx` in the FMU), e.g. the
 /// lines of an MV distribution grid. Every line listed gets R/X = `rx` with its |r + jx| kept,
 /// unless the line sets its own `rx`.
@@ -372,6 +388,9 @@ pub struct Case {
     /// Points of coupling of a DVPP area (outputs `poc[k].p/q/v/f`).
     #[serde(rename = "poc", default, skip_serializing_if = "Vec::is_empty")]
     pub pocs: Vec<Poc>,
+    /// One PCC per DVPP when several DVPPs share the grid (outputs `pcc_<name>.p/q/v/f`).
+    #[serde(rename = "dvpp_pcc", default, skip_serializing_if = "Vec::is_empty")]
+    pub dvpp_pccs: Vec<DvppPcc>,
     /// Lines whose R/X ratio is a parameter of the run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mv: Option<MvLines>,
@@ -700,6 +719,31 @@ impl Case {
                         )))
                     }
                     _ => {}
+                }
+            }
+        }
+        for (k, p) in self.dvpp_pccs.iter().enumerate() {
+            let el = format!("dvpp_pcc {} '{}'", k + 1, p.name);
+            let plain = !p.name.is_empty()
+                && p.name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '_');
+            if !plain || self.dvpp_pccs[..k].iter().any(|q| q.name == p.name) {
+                return Err(CaseError::Inconsistent(format!(
+                    "{el}: names are unique and made of letters, digits and _"
+                )));
+            }
+            bus_ok(el.clone(), p.bus)?;
+            pos(&el, "f_filter_t", p.f_filter_t)?;
+            if p.slots.is_empty() {
+                return Err(CaseError::Inconsistent(format!("{el} lists no slot")));
+            }
+            for &k in &p.slots {
+                if k == 0 || k > self.ders.len() {
+                    return Err(CaseError::UnknownReference {
+                        element: el.clone(),
+                        name: format!("slot {k}"),
+                    });
                 }
             }
         }

@@ -246,6 +246,9 @@ pub(crate) struct PocRt {
     pub branches: Vec<usize>,
     /// Measured at the branches' area-side ends (else where they meet `bus`).
     pub area_side: bool,
+    /// Slot indices (0-based) whose injections are summed (a DVPP's PCC, `[[dvpp_pcc]]`).
+    #[serde(default)]
+    pub slots: Vec<usize>,
     pub tf: f64,
 }
 
@@ -320,6 +323,9 @@ pub struct Outputs {
     /// Per point of coupling (case `[[poc]]`): the power the area sends through its branches
     /// (positive: the area feeds the grid; at the POC bus or the area side, `Poc::side`), its bus voltage, frequency and angle.
     pub poc: Vec<PccOutput>,
+    /// Per DVPP PCC (case `[[dvpp_pcc]]`): its slots' summed injection, its bus voltage,
+    /// frequency and angle.
+    pub dvpp_pcc: Vec<PccOutput>,
     /// Active and reactive power the loads inside the POC area draw (0 without POCs), pu.
     pub area_p_load: f64,
     pub area_q_load: f64,
@@ -470,7 +476,7 @@ impl Grid {
         }
         let pcc_state = x.len();
         x.push(0.0);
-        let pocs: Vec<PocRt> = case
+        let mut pocs: Vec<PocRt> = case
             .pocs
             .iter()
             .map(|p| {
@@ -484,12 +490,25 @@ impl Grid {
                         .map(|name| branches.iter().position(|b| &b.name == name).unwrap())
                         .collect(),
                     area_side: p.side == crate::case::PocSide::Area,
+                    slots: Vec::new(),
                     tf: p.f_filter_t,
                 }
             })
             .collect();
-        let poc_angle = pocs.iter().map(|p| v[p.bus].arg()).collect();
         let area = area_buses(n, &branches, &pocs);
+        // The DVPPs' PCCs follow the POCs (filter states, angles), outside the area.
+        for p in &case.dvpp_pccs {
+            let bus = idx[&p.bus];
+            x.push(v[bus].arg());
+            pocs.push(PocRt {
+                bus,
+                branches: Vec::new(),
+                area_side: false,
+                slots: p.slots.iter().map(|k| k - 1).collect(),
+                tf: p.f_filter_t,
+            });
+        }
+        let poc_angle = pocs.iter().map(|p| v[p.bus].arg()).collect();
         // DER slots
         let mut ders = Vec::new();
         for (k, d) in case.ders.iter().enumerate() {
@@ -571,11 +590,14 @@ impl Grid {
             .flat_map(|(j, m)| m.time_constants(j, wb))
             .collect();
         tcs.push(TimeConstant::new("pcc.f_filter_t".into(), pcc_tf));
+        let n_poc = case.pocs.len();
         for (k, p) in pocs.iter().enumerate() {
-            tcs.push(TimeConstant::new(
-                format!("poc[{}].f_filter_t", k + 1),
-                p.tf,
-            ));
+            let name = if k < n_poc {
+                format!("poc[{}].f_filter_t", k + 1)
+            } else {
+                format!("pcc_{}.f_filter_t", case.dvpp_pccs[k - n_poc].name)
+            };
+            tcs.push(TimeConstant::new(name, p.tf));
         }
         let (h_limit, step_note) = choose_internal_step(&tcs)?;
         let mut g = Grid {
@@ -883,6 +905,9 @@ impl Grid {
         };
         for (k, p) in self.pocs.iter().enumerate() {
             let mut s = C64::new(0.0, 0.0);
+            for &j in &p.slots {
+                s += self.der_power(&self.ders[j]);
+            }
             for &b in &p.branches {
                 let br = &self.branches[b];
                 if br.in_service {
@@ -899,13 +924,18 @@ impl Grid {
                 }
             }
             let th = self.poc_angle[k];
-            out.poc.push(PccOutput {
+            let measured = PccOutput {
                 p: s.re,
                 q: s.im,
                 v: self.v[p.bus].norm(),
                 f: 1.0 + (th - self.x[self.pcc_state + 1 + k]) / (p.tf * self.wb),
                 angle: th,
-            });
+            };
+            if k < self.case.pocs.len() {
+                out.poc.push(measured);
+            } else {
+                out.dvpp_pcc.push(measured);
+            }
         }
         for &i in &self.area {
             let vm2 = self.v[i].norm_sqr();

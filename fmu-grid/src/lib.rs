@@ -66,7 +66,7 @@ pub struct GridConfig {
     #[serde(default, rename = "event", skip_serializing_if = "Vec::is_empty")]
     pub events: Vec<Event>,
     /// Overrides the case's PCC frequency-measurement time constant `[pcc] f_filter_t`, s (and
-    /// the `f_filter_t` of every `[[poc]]`, so that all frequencies are measured alike).
+    /// the `f_filter_t` of every `[[poc]]` and `[[dvpp_pcc]]`, so that all frequencies are measured alike).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub pcc_f_filter_t: Option<f64>,
 }
@@ -122,6 +122,9 @@ impl GridConfig {
             pcc.f_filter_t = t;
             for poc in &mut case.pocs {
                 poc.f_filter_t = t;
+            }
+            for pcc in &mut case.dvpp_pccs {
+                pcc.f_filter_t = t;
             }
             case.validate()
                 .map_err(|e| format!("[model] pcc_f_filter_t = {t}: {e}"))?;
@@ -189,6 +192,9 @@ pub struct GridFmu {
     pcc: [Real; 4],
     /// Per point of coupling: p, q, v, f.
     pocs: Vec<[Real; 4]>,
+    /// Per DVPP PCC (`[[dvpp_pcc]]`): p, q, v, f.
+    #[serde(default)]
+    dvpp_pccs: Vec<[Real; 4]>,
     /// `area.p_load`, `area.q_load` (cases with POCs).
     area_load: Option<[Real; 2]>,
     /// The R/X parameters (cases with an `[mv]` table).
@@ -241,7 +247,12 @@ impl GridFmu {
         s[q] = o.pcc.q;
         s[v] = o.pcc.v;
         s[f] = o.pcc.f;
-        for (vars, p) in self.pocs.iter().zip(&o.poc) {
+        for (vars, p) in self
+            .pocs
+            .iter()
+            .zip(&o.poc)
+            .chain(self.dvpp_pccs.iter().zip(&o.dvpp_pcc))
+        {
             let [vp, vq, vv, vf] = *vars;
             s[vp] = p.p;
             s[vq] = p.q;
@@ -662,6 +673,44 @@ impl Model for GridFmu {
                 ]
             })
             .collect();
+        let dvpp_pccs = case
+            .dvpp_pccs
+            .iter()
+            .map(|p| {
+                let (name, bus) = (&p.name, p.bus);
+                let slots = p
+                    .slots
+                    .iter()
+                    .map(|k| k.to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                [
+                    v.real(Spec::output(
+                        &ports::dvpp_pcc_p(name),
+                        "pu",
+                        &format!("DVPP {name}: active power of its slots {slots} at its PCC, on S_base"),
+                    )),
+                    v.real(Spec::output(
+                        &ports::dvpp_pcc_q(name),
+                        "pu",
+                        &format!("DVPP {name}: reactive power of its slots {slots} at its PCC, on S_base"),
+                    )),
+                    v.real(Spec::output(
+                        &ports::dvpp_pcc_v(name),
+                        "pu",
+                        &format!("DVPP {name}: voltage magnitude at its PCC (bus {bus})"),
+                    )),
+                    v.real(Spec::output(
+                        &ports::dvpp_pcc_f(name),
+                        "pu",
+                        &format!(
+                            "DVPP {name}: frequency at its PCC (bus {bus}), pu of f_nom, measured as pcc.f (T_f = {} s)",
+                            p.f_filter_t
+                        ),
+                    )),
+                ]
+            })
+            .collect();
         let rx = case.mv.as_ref().map(|mv| {
             let rx_max = case::RX_MAX;
             let mv_rx = v.real(
@@ -705,6 +754,7 @@ impl Model for GridFmu {
             machines,
             pcc,
             pocs,
+            dvpp_pccs,
             area_load,
             rx,
             input_auto,

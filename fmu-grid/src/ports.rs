@@ -70,6 +70,31 @@ pub const PCC_F: &str = "pcc.f";
 /// Output: PCC voltage magnitude.
 pub const PCC_V: &str = "pcc.v";
 
+/// The output `port` of the PCC of DVPP `name` (case `[[dvpp_pcc]]`): `pcc_<name>.port`.
+fn dvpp_pcc(name: &str, port: &str) -> String {
+    format!("pcc_{name}.{port}")
+}
+
+/// PCC of DVPP `name`, output: the active power its slots inject.
+pub fn dvpp_pcc_p(name: &str) -> String {
+    dvpp_pcc(name, "p")
+}
+
+/// PCC of DVPP `name`, output: the reactive power its slots inject.
+pub fn dvpp_pcc_q(name: &str) -> String {
+    dvpp_pcc(name, "q")
+}
+
+/// PCC of DVPP `name`, output: voltage magnitude at its bus.
+pub fn dvpp_pcc_v(name: &str) -> String {
+    dvpp_pcc(name, "v")
+}
+
+/// PCC of DVPP `name`, output: frequency at its bus.
+pub fn dvpp_pcc_f(name: &str) -> String {
+    dvpp_pcc(name, "f")
+}
+
 /// The output `port` of point of coupling `k` (1-based): `poc[k].port`.
 fn poc(k: usize, port: &str) -> String {
     format!("poc[{k}].{port}")

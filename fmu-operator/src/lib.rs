@@ -3,8 +3,10 @@
 //! Centrally, at every communication step (the paper's online adaptation of the low-pass dc
 //! gains, section III; as implemented: `docs/control.md` §6):
 //! - active dc gains `μ_p` of the low-pass units proportional to their available power, bounded
-//!   below by `mu_min` for grid-forming units (a grid-forming unit cannot have zero p-f
-//!   participation) and renormalized, so `Σ μ_p = 1` over the low-pass units;
+//!   below for grid-forming units by their floor `min(mu_min, κ S_i/S_dvpp)` (a grid-forming
+//!   unit cannot have zero p-f participation; the floor bounds its p-f stiffness per unit of its
+//!   own rating, `dvpp_control::mu_min_gfm`) and renormalized, so `Σ μ_p = 1` over the low-pass
+//!   units;
 //! - reactive dc gains `μ_q` of all units proportional to their PQ-capability headroom
 //!   `sqrt(S² - P²)`, so `Σ μ_q = 1`;
 //! - a complement unit receives the low-pass gains it complements (`mu_p_lpf[j]`);
@@ -26,7 +28,10 @@
 
 pub mod ports;
 
-use dvpp_control::adaptation::{reactive_capacity, renormalize_with_floor};
+use dvpp_control::adaptation::{
+    reactive_capacity, renormalize_with_floor, renormalize_with_floors,
+};
+use dvpp_control::floor_scale;
 use dvpp_control::{Hold, LtiSimulator, Rotation, TDes};
 use fmi_export::{Context, Model, ModelError, Real, Spec, Store, Variables};
 use serde::{Deserialize, Serialize};
@@ -112,11 +117,8 @@ impl Default for OperatorConfig {
 
 impl OperatorConfig {
     fn check(&self) -> Result<(), String> {
-        if self.ders.is_empty() || self.ders.len() > 32 {
-            return Err(format!(
-                "[model] ders: {} entries, expected 1..=32",
-                self.ders.len()
-            ));
+        if self.ders.is_empty() {
+            return Err("[model] ders: no entries, expected at least one DER".into());
         }
         for (k, d) in self.ders.iter().enumerate() {
             let at = format!("[model] ders[{}] '{}'", k + 1, d.name);
@@ -309,6 +311,27 @@ impl Operator {
             .map(|(k, _)| k)
     }
 
+    /// The floor of each low-pass unit's active dc gain, in the order of [`Operator::low_pass`]:
+    /// `mu_min · min(1, κ S_i/(0.05 S_dvpp))` for a grid-forming unit (`S_i` its rating times
+    /// its share): `mu_min` for a unit of at least 20 % of `S_dvpp`, proportional to its share
+    /// below that. With the default `mu_min` = 0.05 it is the floor the DER clamps its own gain
+    /// at ([`dvpp_control::mu_min_gfm`]); a larger `mu_min` only raises it. 0 for a
+    /// grid-following unit.
+    fn floors(&self, s: &Store) -> Vec<f64> {
+        let s_dvpp = s[self.s_dvpp];
+        self.low_pass()
+            .map(|k| {
+                let d = &self.config.ders[k];
+                if d.form == Form::GridForming {
+                    let rating = s[self.ders[k].s_rated] * d.share;
+                    s[self.mu_min] * floor_scale(rating, s_dvpp)
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    }
+
     /// The gains the current inputs call for.
     fn target(&mut self, s: &Store, t: f64, ctx: &mut Context) -> Result<Gains, ModelError> {
         let s_base = s[self.s_base];
@@ -343,11 +366,8 @@ impl Operator {
                 "all low-pass DERs report zero available power: active dc gains fall back to equal shares".into()
             },
         );
-        let floored: Vec<bool> = lpf
-            .iter()
-            .map(|&k| self.config.ders[k].form == Form::GridForming)
-            .collect();
-        let p = renormalize_with_floor(&weights, &floored, s[self.mu_min])
+        let floors = self.floors(s);
+        let p = renormalize_with_floors(&weights, &floors)
             .map_err(|e| ModelError(format!("active dc gains: {e}")))?;
 
         let mut capacity = Vec::with_capacity(self.ders.len());
@@ -567,7 +587,7 @@ impl Model for Operator {
                 "mu_min",
                 0.05,
                 "1",
-                "lower bound of a grid-forming low-pass unit's active dc gain",
+                "lower bound of a grid-forming low-pass unit's active dc gain (a unit of rating S_i below 0.2 S_dvpp: mu_min S_i/(0.2 S_dvpp))",
             )
             .range(0.0, 0.3),
         );

@@ -20,12 +20,73 @@ pub struct Scenario {
     pub description: String,
     pub experiment: Experiment,
     pub grid: GridSpec,
-    /// The DVPP's desired behaviour, given to the operator and every DER.
+    /// The DVPP's desired behaviour, given to the operator and every DER (`[dvpp]` holding
+    /// `S_dvpp`, `H`, `D`, `Dq`).
+    #[serde(skip)]
     pub dvpp: Option<DvppSpec>,
-    /// Present: the system has a DVPP operator serving the DERs.
+    /// Several DVPPs sharing the grid, by name (`[dvpp.<name>]` tables), in file order; each
+    /// DER names its DVPP (`dvpp = "<name>"`).
+    #[serde(skip)]
+    pub dvpps: Vec<(String, DvppSpec)>,
+    /// `[dvpp]` as written: one DVPP, or one table per named DVPP.
+    #[serde(rename = "dvpp", default)]
+    dvpp_table: Option<Table>,
+    /// Present: the system has a DVPP operator serving the DERs (with named DVPPs: one per DVPP,
+    /// `operator_<name>`, each with these start values).
     pub operator: Option<StartOnly>,
     #[serde(default)]
     pub der: Vec<DerSpec>,
+    /// Fleets of equal units spread over buses, expanded into DERs after `[[der]]`.
+    #[serde(default)]
+    pub fleet: Vec<FleetSpec>,
+}
+
+/// A fleet: `count` equal units `<name>1` … `<name><count>` of one preset, spread over `buses`
+/// in turn (unit `k` at `buses[(k - 1) % len]`), each with `1/count` of the fleet's rating,
+/// dispatch and available power; each gets a DER slot of its own in the grid.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FleetSpec {
+    /// Prefix of the units' component names.
+    pub name: String,
+    /// The DER FMU's preset (absent: the generic unit, a static ADPF).
+    pub preset: Option<String>,
+    pub count: usize,
+    pub buses: Vec<u32>,
+    /// Total converter rating, MVA.
+    pub rating_mva: f64,
+    /// Total active dispatch, MW.
+    #[serde(default)]
+    pub p_mw: f64,
+    /// Total reactive dispatch, Mvar (used on PQ buses).
+    #[serde(default)]
+    pub q_mvar: f64,
+    /// Slot kind (default grid-forming).
+    #[serde(default = "grid_forming")]
+    pub kind: fmu_grid::DerKind,
+    /// Each unit's series resistance and reactance to its bus, pu on its own rating.
+    #[serde(default = "fleet_r")]
+    pub r: f64,
+    #[serde(default = "fleet_x")]
+    pub x: f64,
+    /// The named DVPP the fleet belongs to.
+    pub dvpp: Option<String>,
+    /// Start values of every unit; the power-valued ones (`P_avail0`, `avail.dP`) are the
+    /// fleet's totals, split equally.
+    #[serde(default)]
+    pub start: Table,
+}
+
+fn grid_forming() -> fmu_grid::DerKind {
+    fmu_grid::DerKind::GridForming
+}
+
+fn fleet_r() -> f64 {
+    0.01
+}
+
+fn fleet_x() -> f64 {
+    0.10
 }
 
 #[derive(Debug, Deserialize)]
@@ -53,6 +114,14 @@ pub struct GridSpec {
     /// Start values of grid variables (e.g. `"event[1].enabled" = false`).
     #[serde(default)]
     pub start: Table,
+    /// false: the case's own DER slots are left out (and its `[pcc]` sums the fleets' slots
+    /// instead), for a DVPP made of fleets only; `[[der]]` must then be empty.
+    #[serde(default = "yes")]
+    pub case_slots: bool,
+}
+
+fn yes() -> bool {
+    true
 }
 
 #[derive(Debug, Deserialize)]
@@ -83,6 +152,10 @@ pub struct DvppSpec {
     /// operator's `rot.rx` (the POC powers rotated alike); 0 (or absent): classical p-f control.
     #[serde(default)]
     pub rot_rx: Option<f64>,
+    /// A named DVPP's PCC bus (default: the bus of its first unit), where its operator measures
+    /// the frequency; its power is the sum of its units' slots.
+    #[serde(default)]
+    pub pcc_bus: Option<u32>,
 }
 
 /// DER parameters in power units that a split scales with the part (pu on S_base).
@@ -137,6 +210,7 @@ fn split_ders(ders: &[DerSpec], eps: f64) -> Vec<DerSpec> {
                 DerSpec {
                     name: format!("{}{suffix}", d.name),
                     preset: d.preset.clone(),
+                    dvpp: d.dvpp.clone(),
                     start,
                 }
             })
@@ -191,15 +265,176 @@ pub struct StartOnly {
 pub struct DerSpec {
     pub name: String,
     pub preset: Option<String>,
+    /// The named DVPP the unit belongs to (scenarios with `[dvpp.<name>]` tables).
+    pub dvpp: Option<String>,
     #[serde(default)]
     pub start: Table,
 }
 
 impl Scenario {
     pub fn read(path: &Path) -> Result<Scenario, String> {
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-        toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))
+        let at = |e: String| format!("{}: {e}", path.display());
+        let text = std::fs::read_to_string(path).map_err(|e| at(e.to_string()))?;
+        let mut sc: Scenario = toml::from_str(&text).map_err(|e| at(e.to_string()))?;
+        sc.resolve_dvpps().map_err(at)?;
+        Ok(sc)
     }
+
+    /// `[dvpp]` as one DVPP (it has `S_dvpp`) or as named DVPPs (`[dvpp.<name>]`).
+    fn resolve_dvpps(&mut self) -> Result<(), String> {
+        let Some(table) = self.dvpp_table.take() else {
+            return Ok(());
+        };
+        let spec = |what: &str, t: Table| -> Result<DvppSpec, String> {
+            Value::Table(t)
+                .try_into()
+                .map_err(|e| format!("{what}: {e}"))
+        };
+        if table.contains_key("S_dvpp") {
+            let one = spec("[dvpp]", table)?;
+            if one.pcc_bus.is_some() {
+                return Err("[dvpp] pcc_bus: only a named DVPP ([dvpp.<name>]) has a PCC of its own; one DVPP uses the case's [pcc]".into());
+            }
+            self.dvpp = Some(one);
+            return Ok(());
+        }
+        for (name, v) in table {
+            let Value::Table(t) = v else {
+                return Err(format!(
+                    "[dvpp]: '{name}' is neither a field of one DVPP (S_dvpp, H, D, Dq, ...) nor a named DVPP's table [dvpp.{name}]"
+                ));
+            };
+            if !plain_name(&name) {
+                return Err(format!(
+                    "[dvpp.{name}]: a DVPP's name is made of letters, digits and _"
+                ));
+            }
+            let d = spec(&format!("[dvpp.{name}]"), t)?;
+            if d.eps.is_some() || d.rating_scale.is_some() {
+                return Err(format!(
+                    "[dvpp.{name}]: eps and rating_scale (a hybrid DVPP) need a single [dvpp]"
+                ));
+            }
+            self.dvpps.push((name, d));
+        }
+        if self.dvpps.is_empty() {
+            return Err("[dvpp]: empty; give S_dvpp, H, D, Dq or named DVPPs [dvpp.<name>]".into());
+        }
+        Ok(())
+    }
+
+    /// The fleets expanded into DERs (appended to `[[der]]`), after checking them.
+    fn expand_fleets(&mut self) -> Result<(), String> {
+        for f in &self.fleet {
+            let at = format!("[[fleet]] '{}'", f.name);
+            if f.count == 0 {
+                return Err(format!("{at}: count = 0, a fleet has at least one unit"));
+            }
+            if f.buses.is_empty() {
+                return Err(format!("{at}: buses is empty"));
+            }
+            if !(f.rating_mva > 0.0 && f.rating_mva.is_finite()) {
+                return Err(format!(
+                    "{at}: rating_mva = {}: the fleet's total rating is > 0",
+                    f.rating_mva
+                ));
+            }
+            for (what, x) in [
+                ("p_mw", f.p_mw),
+                ("q_mvar", f.q_mvar),
+                ("r", f.r),
+                ("x", f.x),
+            ] {
+                if !x.is_finite() {
+                    return Err(format!("{at}: {what} = {x} is not finite"));
+                }
+            }
+            let n = f.count as f64;
+            for k in 1..=f.count {
+                let mut start = f.start.clone();
+                for key in SPLIT_POWERS {
+                    if let Some(x) = start.get(key).and_then(|v| v.as_float()) {
+                        start.insert(key.into(), real(x / n));
+                    }
+                }
+                self.der.push(DerSpec {
+                    name: format!("{}{k}", f.name),
+                    preset: f.preset.clone(),
+                    dvpp: f.dvpp.clone(),
+                    start,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    /// The DER slots of the fleets, in the order of [`Scenario::expand_fleets`]'s DERs.
+    fn fleet_slots(&self, case: &fmu_grid::Case) -> Result<Vec<fmu_grid::DerSlot>, String> {
+        let mut slots = Vec::new();
+        for f in &self.fleet {
+            if let Some(b) = f
+                .buses
+                .iter()
+                .find(|b| !case.buses.iter().any(|x| x.id == **b))
+            {
+                return Err(format!(
+                    "[[fleet]] '{}': bus {b} is not a bus of the grid case",
+                    f.name
+                ));
+            }
+            let n = f.count as f64;
+            for k in 1..=f.count {
+                slots.push(fmu_grid::DerSlot {
+                    name: Some(format!("{}{k}", f.name)),
+                    kind: f.kind,
+                    bus: f.buses[(k - 1) % f.buses.len()],
+                    rating_mva: f.rating_mva / n,
+                    r: f.r,
+                    x: Some(f.x),
+                    p_mw: f.p_mw / n,
+                    q_mvar: f.q_mvar / n,
+                });
+            }
+        }
+        Ok(slots)
+    }
+
+    /// Which DVPP each DER belongs to: indices into [`Scenario::dvpps`] (named DVPPs), or all
+    /// `None` (one DVPP, or none).
+    fn membership(&self) -> Result<Vec<Option<usize>>, String> {
+        self.der
+            .iter()
+            .map(|d| match (&d.dvpp, self.dvpps.is_empty()) {
+                (None, true) => Ok(None),
+                (Some(n), true) => Err(format!(
+                    "DER '{}': dvpp = \"{n}\", but the scenario has no named DVPPs ([dvpp.{n}])",
+                    d.name
+                )),
+                (None, false) => Err(format!(
+                    "DER '{}': with named DVPPs every DER names its DVPP (dvpp = \"{}\", ...)",
+                    d.name, self.dvpps[0].0
+                )),
+                (Some(n), false) => self
+                    .dvpps
+                    .iter()
+                    .position(|(x, _)| x == n)
+                    .map(Some)
+                    .ok_or_else(|| {
+                        let known: Vec<&str> = self.dvpps.iter().map(|(x, _)| x.as_str()).collect();
+                        format!(
+                            "DER '{}': unknown DVPP '{n}' (the scenario's DVPPs: {})",
+                            d.name,
+                            known.join(", ")
+                        )
+                    }),
+            })
+            .collect()
+    }
+}
+
+/// A component-name part: letters, digits and `_`, not empty.
+fn plain_name(name: &str) -> bool {
+    !name.is_empty() && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
 }
 
 /// The scenario's name: its file stem.
@@ -283,6 +518,8 @@ struct Job<'a, 'b> {
     path: &'a Path,
     name: String,
     sc: Scenario,
+    /// Each DER's named DVPP (index into `sc.dvpps`), all `None` with one DVPP or none.
+    member: Vec<Option<usize>>,
     out_dir: &'a Path,
     bundle_one: &'a mut Bundler<'b>,
 }
@@ -304,8 +541,11 @@ struct GridUnit {
 /// A bundled DER and what its wiring depends on.
 struct DerUnit {
     unit: Unit,
-    /// 1-based slot in the grid (and entry in the operator).
+    /// 1-based slot in the grid.
     slot: usize,
+    /// 1-based entry in its DVPP's operator, and that operator's component name.
+    entry: usize,
+    operator: String,
     forming: bool,
     role: Role,
     /// A complement: the operator's low-pass gains it reads (1-based, in the operator's order).
@@ -342,20 +582,49 @@ impl Job<'_, '_> {
         let ders = &self.sc.der;
         for d in ders {
             if [GRID, OPERATOR].contains(&d.name.as_str())
+                || d.name.starts_with("operator_")
                 || ders.iter().filter(|x| x.name == d.name).count() > 1
-                || d.name.is_empty()
-                || !d
-                    .name
-                    .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || c == '_')
+                || !plain_name(&d.name)
             {
                 return Err(self.here(format!(
-                    "DER name '{}' must be unique, not 'grid' or 'operator', and made of letters, digits and _",
+                    "DER name '{}' must be unique, not 'grid', 'operator' or 'operator_…', and made of letters, digits and _",
                     d.name
                 )));
             }
         }
         Ok(())
+    }
+
+    /// The DVPPs: (name, operator component, DER indices); one unnamed DVPP without named ones.
+    fn groups(&self) -> Vec<(Option<String>, String, Vec<usize>)> {
+        if self.sc.dvpps.is_empty() {
+            return vec![(None, OPERATOR.into(), (0..self.sc.der.len()).collect())];
+        }
+        self.sc
+            .dvpps
+            .iter()
+            .enumerate()
+            .map(|(g, (name, _))| {
+                let members = (0..self.sc.der.len())
+                    .filter(|&k| self.member[k] == Some(g))
+                    .collect();
+                (Some(name.clone()), format!("operator_{name}"), members)
+            })
+            .collect()
+    }
+
+    /// The spec of DVPP `g` of [`Job::groups`].
+    fn dvpp_spec(&self, g: usize) -> Option<&DvppSpec> {
+        if self.sc.dvpps.is_empty() {
+            self.sc.dvpp.as_ref()
+        } else {
+            self.sc.dvpps.get(g).map(|(_, d)| d)
+        }
+    }
+
+    /// The DVPP (index of [`Job::groups`]) of DER `k`.
+    fn group_of(&self, k: usize) -> usize {
+        self.member[k].unwrap_or(0)
     }
 
     /// The grid: its configuration, and the power-flow point the other units start from.
@@ -400,10 +669,13 @@ impl Job<'_, '_> {
         let _ = std::fs::remove_dir_all(&staging);
         let eps = self.sc.dvpp.as_ref().and_then(|d| d.eps);
         if let Some(eps) = eps {
-            // The split case, with the scenario's events and filter already in it, goes to the
-            // grid FMU as its case file.
             let scale = self.sc.dvpp.as_ref().and_then(|d| d.rating_scale);
             case = split_case(&case, eps, scale.unwrap_or(1.0));
+        }
+        let rewritten = self.extend_case(&mut case).map_err(here)?;
+        if eps.is_some() || rewritten {
+            // The case as the scenario makes it (split, fleets, the DVPPs' PCCs), with the
+            // scenario's events and filter already in it, goes to the grid FMU as its case file.
             let file = self.out_dir.join(format!(".{}-case.toml", self.name));
             let text = toml::to_string(&case).map_err(|e| here(format!("split case: {e}")))?;
             std::fs::write(&file, text).map_err(|e| here(format!("{}: {e}", file.display())))?;
@@ -418,16 +690,9 @@ impl Job<'_, '_> {
         let pf = fmu_grid::Grid::new(&case)
             .map_err(|e| here(format!("grid: {e}")))?
             .outputs();
-        if case.ders.len() != self.sc.der.len() {
-            return Err(here(format!(
-                "the grid case has {} DER slots but the scenario lists {} DERs",
-                case.ders.len(),
-                self.sc.der.len()
-            )));
-        }
         let start = self.sc.grid.start.clone();
         let md = self.build(GRID_FMU, GRID, model, &start, files.clone())?;
-        if eps.is_some() {
+        if eps.is_some() || rewritten {
             let _ = std::fs::remove_file(&files[0]);
         }
         Ok(GridUnit {
@@ -441,9 +706,88 @@ impl Job<'_, '_> {
         })
     }
 
-    /// The rotation's R/X from `[dvpp] rot_rx` (None: classical).
-    fn rot_rx(&self) -> Result<Option<f64>, String> {
-        match self.sc.dvpp.as_ref().and_then(|d| d.rot_rx) {
+    /// The case as the scenario extends it: without its own slots (`case_slots = false`), the
+    /// fleets' slots appended (and summed into the one DVPP's `[pcc]`), one `[[dvpp_pcc]]` per
+    /// named DVPP. Returns whether anything changed.
+    fn extend_case(&self, case: &mut fmu_grid::Case) -> Result<bool, String> {
+        let mut changed = false;
+        if !self.sc.grid.case_slots {
+            if self.sc.fleet.is_empty() {
+                return Err("[grid] case_slots = false leaves no DER slot: add a [[fleet]]".into());
+            }
+            case.ders.clear();
+            if let Some(pcc) = &mut case.pcc {
+                pcc.slots.clear();
+                pcc.branches.clear();
+            }
+            changed = true;
+        }
+        let fleet = self.sc.fleet_slots(case)?;
+        if !fleet.is_empty() {
+            let first = case.ders.len() + 1;
+            let n = fleet.len();
+            case.ders.extend(fleet);
+            if self.sc.dvpps.is_empty() {
+                if let Some(pcc) = &mut case.pcc {
+                    pcc.slots.extend(first..first + n);
+                }
+            }
+            changed = true;
+        }
+        if case.ders.len() != self.sc.der.len() {
+            return Err(format!(
+                "the grid case has {} DER slots but the scenario lists {} DERs",
+                case.ders.len(),
+                self.sc.der.len()
+            ));
+        }
+        if !self.sc.dvpps.is_empty() {
+            if !case.pocs.is_empty() {
+                return Err(
+                    "named DVPPs measure at their own PCCs; a case with points of coupling ([[poc]]) needs a single [dvpp]"
+                        .into(),
+                );
+            }
+            let f_filter_t = self
+                .sc
+                .grid
+                .pcc_f_filter_t
+                .or(case.pcc.as_ref().map(|p| p.f_filter_t))
+                .unwrap_or(0.02);
+            for (g, (name, members)) in self
+                .groups()
+                .into_iter()
+                .map(|(n, _, m)| (n.expect("named"), m))
+                .enumerate()
+            {
+                let first = members
+                    .first()
+                    .ok_or(format!("[dvpp.{name}]: no DER belongs to it"))?;
+                let bus = self.sc.dvpps[g].1.pcc_bus.unwrap_or(case.ders[*first].bus);
+                if !case.buses.iter().any(|b| b.id == bus) {
+                    return Err(format!(
+                        "[dvpp.{name}] pcc_bus = {bus} is not a bus of the grid case"
+                    ));
+                }
+                case.dvpp_pccs.push(fmu_grid::case::DvppPcc {
+                    name: name.clone(),
+                    bus,
+                    slots: members.iter().map(|k| k + 1).collect(),
+                    f_filter_t,
+                });
+            }
+            changed = true;
+        }
+        if changed {
+            case.validate()
+                .map_err(|e| format!("the scenario's grid case: {e}"))?;
+        }
+        Ok(changed)
+    }
+
+    /// The rotation's R/X of DVPP `g` from its `rot_rx` (None: classical).
+    fn rot_rx(&self, g: usize) -> Result<Option<f64>, String> {
+        match self.dvpp_spec(g).and_then(|d| d.rot_rx) {
             Some(rx) if !(rx.is_finite() && rx >= 0.0) => Err(self.here(format!(
                 "[dvpp] rot_rx = {rx}: the R/X ratio is finite and >= 0"
             ))),
@@ -451,10 +795,10 @@ impl Job<'_, '_> {
         }
     }
 
-    /// `T_des`, shared by the operator and the DERs.
-    fn tdes(&self) -> Table {
+    /// `T_des` of DVPP `g`, shared by its operator and its DERs.
+    fn tdes(&self, g: usize) -> Table {
         let mut tdes = Table::new();
-        if let Some(d) = &self.sc.dvpp {
+        if let Some(d) = self.dvpp_spec(g) {
             tdes.insert(der::S_DVPP.into(), real(d.s_dvpp));
             tdes.insert(der::TDES_H.into(), real(d.h));
             tdes.insert(der::TDES_D.into(), real(d.d));
@@ -465,14 +809,22 @@ impl Job<'_, '_> {
 
     /// The DERs: preset, mode from the slot kind, the power-flow point as input start values;
     /// then every complement unit again, with the time constants of the low-pass units it closes.
-    fn ders(&mut self, grid: &GridUnit, tdes: &Table) -> Result<Vec<DerUnit>, String> {
+    fn ders(&mut self, grid: &GridUnit) -> Result<Vec<DerUnit>, String> {
         let mut ders = Vec::with_capacity(self.sc.der.len());
-        for k in 0..self.sc.der.len() {
+        let groups = self.groups();
+        let mut entry = vec![0; self.sc.der.len()];
+        for (_, _, members) in &groups {
+            for (i, &k) in members.iter().enumerate() {
+                entry[k] = i + 1;
+            }
+        }
+        for (k, &entry) in entry.iter().enumerate() {
+            let g = self.group_of(k);
             let spec = &self.sc.der[k];
             let slot = &grid.case.ders[k];
             let model = der_model(spec, slot.rating_mva);
-            let mut start = tdes.clone();
-            if let Some(rx) = self.rot_rx()? {
+            let mut start = self.tdes(g);
+            if let Some(rx) = self.rot_rx(g)? {
                 start.insert(der::ROT_RX.into(), real(rx));
             }
             let forming = slot.kind == fmu_grid::DerKind::GridForming;
@@ -505,16 +857,33 @@ impl Job<'_, '_> {
             ders.push(DerUnit {
                 unit: Unit { name, md, start },
                 slot: k + 1,
+                entry,
+                operator: groups[g].1.clone(),
                 forming,
                 role,
                 closes: Vec::new(),
             });
         }
-        // A complement unit closes the low-pass units of this scenario (with a complement per
-        // form, a hybrid DVPP: those of its own form): their time constants, and which of the
+        // A complement unit closes the low-pass units of its DVPP (with a complement per form,
+        // a hybrid DVPP: those of its own form): their time constants, and which of its
         // operator's low-pass gains it reads.
-        let lpf: Vec<(bool, f64, i64)> = ders
+        for (name, _, members) in &groups {
+            self.close_complements(&mut ders, grid, name.as_deref(), members)?;
+        }
+        Ok(ders)
+    }
+
+    /// The complement units among `members` (DVPP `name`) closing that DVPP's low-pass units.
+    fn close_complements(
+        &mut self,
+        ders: &mut [DerUnit],
+        grid: &GridUnit,
+        name: Option<&str>,
+        members: &[usize],
+    ) -> Result<(), String> {
+        let lpf: Vec<(bool, f64, i64)> = members
             .iter()
+            .map(|&k| &ders[k])
             .filter(|d| d.role == Role::LowPass)
             .map(|d| {
                 let tau = start_of(&d.unit.md, der::ADPF_P_TAU).unwrap_or(0.0);
@@ -522,8 +891,13 @@ impl Job<'_, '_> {
                 (d.forming, tau, order as i64)
             })
             .collect();
-        let per_form = ders.iter().filter(|d| d.role == Role::Complement).count() > 1;
-        for (k, d) in ders.iter_mut().enumerate() {
+        let per_form = members
+            .iter()
+            .filter(|&&k| ders[k].role == Role::Complement)
+            .count()
+            > 1;
+        for &k in members {
+            let d = &mut ders[k];
             if d.role != Role::Complement {
                 continue;
             }
@@ -533,6 +907,15 @@ impl Job<'_, '_> {
                 .filter(|(_, u)| !per_form || u.0 == d.forming)
                 .map(|(j, &(_, tau, order))| (j + 1, tau, order))
                 .collect();
+            if closed.len() > fmu_der::MAX_LPF {
+                return Err(self.here(format!(
+                    "DER '{}' (the complement of DVPP {}) would close {} low-pass units; a complement closes at most {} (a fleet's units are best given static ADPFs, which need no complement)",
+                    d.unit.name,
+                    name.unwrap_or("of the scenario"),
+                    closed.len(),
+                    fmu_der::MAX_LPF
+                )));
+            }
             d.closes = closed.iter().map(|c| c.0).collect();
             let mut extra = Table::new();
             extra.insert(
@@ -550,19 +933,16 @@ impl Job<'_, '_> {
             let model = der_model(&self.sc.der[k], grid.case.ders[k].rating_mva);
             d.unit.md = self.build(DER_FMU, &d.unit.name, model, &d.unit.start, Vec::new())?;
         }
-        Ok(ders)
+        Ok(())
     }
 
-    /// The operator: one entry per DER (role, form, rating), the power-flow point as start values.
-    fn operator(
-        &mut self,
-        grid: &GridUnit,
-        ders: &[DerUnit],
-        tdes: &Table,
-    ) -> Result<Unit, String> {
+    /// The operator of DVPP `g`: one entry per DER of it (role, form, rating), the power-flow
+    /// point as start values.
+    fn operator(&mut self, grid: &GridUnit, ders: &[DerUnit], g: usize) -> Result<Unit, String> {
+        let (name, component, members) = self.groups().swap_remove(g);
         let mut entries = Vec::new();
-        let mut start = tdes.clone();
-        for d in ders {
+        let mut start = self.tdes(g);
+        for d in members.iter().map(|&k| &ders[k]) {
             let md = &d.unit.md;
             let mut e = Table::new();
             e.insert("name".into(), Value::String(d.unit.name.clone()));
@@ -577,14 +957,23 @@ impl Job<'_, '_> {
                 start_of(md, der::S_RATED).ok_or(format!("DER '{}': no S_rated", d.unit.name))?;
             e.insert("s_rated".into(), real(s_rated));
             entries.push(Value::Table(e));
-            let k = d.slot;
+            let (k, slot) = (d.entry, d.slot);
             let avail = start_of(md, der::P_AVAIL0).unwrap_or(0.0);
             start.insert(op::der_p_avail(k), real(avail));
-            start.insert(op::der_p(k), real(grid.pf.der[k - 1].p));
-            start.insert(op::der_p_set(k), real(grid.pf.der[k - 1].p));
-            start.insert(op::der_q(k), real(grid.pf.der[k - 1].q));
+            start.insert(op::der_p(k), real(grid.pf.der[slot - 1].p));
+            start.insert(op::der_p_set(k), real(grid.pf.der[slot - 1].p));
+            start.insert(op::der_q(k), real(grid.pf.der[slot - 1].q));
         }
-        let pcc = &grid.pf.pcc;
+        let pcc = match &name {
+            None => &grid.pf.pcc,
+            Some(n) => grid
+                .case
+                .dvpp_pccs
+                .iter()
+                .position(|p| &p.name == n)
+                .and_then(|i| grid.pf.dvpp_pcc.get(i))
+                .ok_or(format!("the grid case has no [[dvpp_pcc]] '{n}'"))?,
+        };
         for (n, x) in [
             (op::PCC_P, pcc.p),
             (op::PCC_Q, pcc.q),
@@ -596,7 +985,7 @@ impl Job<'_, '_> {
         // A DVPP area with points of coupling: ref.df is matched at them, on the POC powers
         // rotated by the scenario's R/X.
         let pocs = grid.case.pocs.len();
-        let rot_rx = self.rot_rx()?.unwrap_or(0.0);
+        let rot_rx = self.rot_rx(g)?.unwrap_or(0.0);
         if pocs > 0 {
             for (k, o) in grid.pf.poc.iter().enumerate() {
                 for (n, x) in [
@@ -624,9 +1013,9 @@ impl Job<'_, '_> {
             model.insert("pocs".into(), Value::Integer(pocs as i64));
             model.insert("rot_rx".into(), real(rot_rx));
         }
-        let md = self.build(OPERATOR_FMU, OPERATOR, model, &start, Vec::new())?;
+        let md = self.build(OPERATOR_FMU, &component, model, &start, Vec::new())?;
         Ok(Unit {
-            name: OPERATOR.into(),
+            name: component,
             md,
             start,
         })
@@ -705,45 +1094,49 @@ fn slot_drive(d: &DerUnit) -> Vec<Wire> {
     }
 }
 
-/// DER and grid → operator: the DER's availability and its slot's power.
+/// DER and grid → its operator: the DER's availability and its slot's power.
 fn operator_measurements(d: &DerUnit) -> Vec<Wire> {
-    let (n, k) = (d.unit.name.as_str(), d.slot);
+    let (n, k, s, o) = (d.unit.name.as_str(), d.entry, d.slot, d.operator.as_str());
     vec![
-        wire(n, der::P_AVAIL, OPERATOR, &op::der_p_avail(k)),
-        wire(n, der::P_SET, OPERATOR, &op::der_p_set(k)),
-        wire(GRID, &grid::der_p(k), OPERATOR, &op::der_p(k)),
-        wire(GRID, &grid::der_q(k), OPERATOR, &op::der_q(k)),
+        wire(n, der::P_AVAIL, o, &op::der_p_avail(k)),
+        wire(n, der::P_SET, o, &op::der_p_set(k)),
+        wire(GRID, &grid::der_p(s), o, &op::der_p(k)),
+        wire(GRID, &grid::der_q(s), o, &op::der_q(k)),
     ]
 }
 
-/// Operator → DER: the dc gains its role takes.
+/// Its operator → DER: the dc gains its role takes.
 fn operator_gains(d: &DerUnit) -> Vec<Wire> {
-    let (n, k) = (d.unit.name.as_str(), d.slot);
-    let mut wires = vec![wire(OPERATOR, &op::der_mu_q(k), n, der::MU_Q)];
+    let (n, k, o) = (d.unit.name.as_str(), d.entry, d.operator.as_str());
+    let mut wires = vec![wire(o, &op::der_mu_q(k), n, der::MU_Q)];
     match d.role {
-        Role::LowPass => wires.push(wire(OPERATOR, &op::der_mu_p(k), n, der::MU_P)),
+        Role::LowPass => wires.push(wire(o, &op::der_mu_p(k), n, der::MU_P)),
         Role::Complement => wires.extend(
             d.closes
                 .iter()
                 .enumerate()
-                .map(|(i, &j)| wire(OPERATOR, &op::der_mu_p_lpf(k, j), n, &der::mu_p_lpf(i + 1))),
+                .map(|(i, &j)| wire(o, &op::der_mu_p_lpf(k, j), n, &der::mu_p_lpf(i + 1))),
         ),
         Role::HighPass | Role::BandPass => {}
     }
     wires
 }
 
-/// Grid → operator: the PCC measurements.
-fn pcc_measurements() -> Vec<Wire> {
-    [
-        (grid::PCC_P, op::PCC_P),
-        (grid::PCC_Q, op::PCC_Q),
-        (grid::PCC_F, op::PCC_F),
-        (grid::PCC_V, op::PCC_V),
-    ]
-    .into_iter()
-    .map(|(from, to)| wire(GRID, from, OPERATOR, to))
-    .collect()
+/// Grid → operator: the PCC measurements (`dvpp`: a named DVPP's own PCC, `pcc_<name>.*`).
+fn pcc_measurements(dvpp: Option<&str>, operator: &str) -> Vec<Wire> {
+    let from: [String; 4] = match dvpp {
+        None => [grid::PCC_P, grid::PCC_Q, grid::PCC_F, grid::PCC_V].map(String::from),
+        Some(n) => [
+            grid::dvpp_pcc_p(n),
+            grid::dvpp_pcc_q(n),
+            grid::dvpp_pcc_f(n),
+            grid::dvpp_pcc_v(n),
+        ],
+    };
+    from.iter()
+        .zip([op::PCC_P, op::PCC_Q, op::PCC_F, op::PCC_V])
+        .map(|(from, to)| wire(GRID, from, operator, to))
+        .collect()
 }
 
 /// Grid → operator: each point of coupling's measurements.
@@ -774,17 +1167,20 @@ const DER_RULES: &[DerRule] = &[slot_measurements, slot_drive];
 /// Rules per DER of a system with an operator, after those of `DER_RULES`.
 const OPERATOR_RULES: &[DerRule] = &[operator_measurements, operator_gains];
 
-/// Every connection of the system (`pocs`: the grid's points of coupling).
-fn wiring(ders: &[DerUnit], operator: bool, pocs: usize) -> Vec<Wire> {
+/// Every connection of the system: `operators` are the DVPPs' (name, operator component) if
+/// the system has operators, `pocs` the grid's points of coupling.
+fn wiring(ders: &[DerUnit], operators: &[(Option<String>, String)], pocs: usize) -> Vec<Wire> {
     let per_der = |rules: &[DerRule]| -> Vec<Wire> {
         ders.iter()
             .flat_map(|d| rules.iter().flat_map(move |rule| rule(d)))
             .collect()
     };
     let mut wires = per_der(DER_RULES);
-    if operator {
+    if !operators.is_empty() {
         wires.extend(per_der(OPERATOR_RULES));
-        wires.extend(pcc_measurements());
+        for (name, component) in operators {
+            wires.extend(pcc_measurements(name.as_deref(), component));
+        }
         wires.extend(poc_measurements(pocs));
     }
     wires
@@ -861,27 +1257,35 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
         }
         sc.der = split_ders(&sc.der, eps);
     }
+    sc.expand_fleets()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let member = sc
+        .membership()
+        .map_err(|e| format!("{}: {e}", path.display()))?;
     std::fs::create_dir_all(out_dir).map_err(|e| format!("{}: {e}", out_dir.display()))?;
     let mut job = Job {
         path,
         name,
         sc,
+        member,
         out_dir,
         bundle_one,
     };
     job.check_der_names()?;
     let grid = job.grid()?;
-    let tdes = job.tdes();
-    let ders = job.ders(&grid, &tdes)?;
-    let operator = if job.sc.operator.is_some() {
-        Some(job.operator(&grid, &ders, &tdes)?)
-    } else {
-        None
-    };
-    let wires = wiring(&ders, operator.is_some(), grid.case.pocs.len());
+    let ders = job.ders(&grid)?;
+    let mut operators = Vec::new();
+    let mut named = Vec::new();
+    if job.sc.operator.is_some() {
+        for (g, (name, component, _)) in job.groups().into_iter().enumerate() {
+            operators.push(job.operator(&grid, &ders, g)?);
+            named.push((name, component));
+        }
+    }
+    let wires = wiring(&ders, &named, grid.case.pocs.len());
     let mut units = vec![grid.unit];
     units.extend(ders.into_iter().map(|d| d.unit));
-    units.extend(operator);
+    units.extend(operators);
     let system = system(&job.name, &job.sc, &units, wires)?;
     let fmus: Vec<(String, PathBuf)> = system
         .components
@@ -953,6 +1357,13 @@ mod tests {
     /// Bundle `scenario` with the FMUs described in process instead of built: the system, and
     /// the model description of each component.
     fn bundled(scenario: &Path) -> (ssp::System, BTreeMap<String, ModelDescription>) {
+        try_bundled(scenario).unwrap()
+    }
+
+    /// [`bundled`], or the bundler's error.
+    fn try_bundled(
+        scenario: &Path,
+    ) -> Result<(ssp::System, BTreeMap<String, ModelDescription>), String> {
         let name = name_of(scenario).unwrap();
         let dir =
             std::env::temp_dir().join(format!("xtask-scenario-{}-{name}", std::process::id()));
@@ -980,10 +1391,10 @@ mod tests {
             mds.insert(component, md.clone());
             Ok(md)
         };
-        let ssp = bundle(scenario, &dir, &mut one).unwrap();
-        let system = ssp::read(&ssp).unwrap().system.clone();
+        let ssp = bundle(scenario, &dir, &mut one);
+        let system = ssp.map(|ssp| ssp::read(&ssp).unwrap().system.clone());
         let _ = std::fs::remove_dir_all(&dir);
-        (system, mds)
+        Ok((system?, mds))
     }
 
     /// Every connection runs from an output to an input of the model descriptions, and every
@@ -1141,5 +1552,166 @@ mod tests {
             }
         }
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn fleets_and_named_dvpps_wire_each_operator_to_its_own_units() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        // Per static grid-forming fleet unit: 4 measurements, 2 drives, 3 limits, 4 to the
+        // operator, mu_q and mu_p; 4 PCC measurements per operator.
+        assert_wired(&dir.join("scale_fleet200.toml"), 200 * 15 + 4);
+        // Case study I's DVPP as in case1_load, and 24 fleet units with their operator.
+        assert_wired(
+            &dir.join("scale_two_dvpps.toml"),
+            3 * (11 + 3) + 2 + 2 + 4 + 24 * 15 + 4,
+        );
+        let (system, mds) = bundled(&dir.join("scale_two_dvpps.toml"));
+        let operators: Vec<&str> = system
+            .components
+            .iter()
+            .map(|c| c.name.as_str())
+            .filter(|n| n.starts_with("operator"))
+            .collect();
+        assert_eq!(operators, ["operator_ci", "operator_fleet"]);
+        // Each operator serves its own units, numbered from 1, with its own T_des.
+        assert!(mds["operator_ci"].variable(&op::der_mu_p(3)).is_none());
+        assert!(mds["operator_fleet"].variable(&op::der_mu_p(24)).is_some());
+        assert_eq!(start_of(&mds["operator_fleet"], der::S_DVPP), Some(60.0));
+        assert_eq!(start_of(&mds["f24"], der::S_DVPP), Some(60.0));
+        assert_eq!(start_of(&mds["wind"], der::S_DVPP), Some(96.0));
+        assert_eq!(start_of(&mds["f7"], der::S_RATED), Some(2.5));
+        let from = |to: &str, input: &str| {
+            system
+                .connections
+                .iter()
+                .find(|c| c.end_element == to && c.end_connector == input)
+                .map(|c| (c.start_element.clone(), c.start_connector.clone()))
+        };
+        assert_eq!(
+            from("operator_fleet", op::PCC_F),
+            Some((GRID.into(), grid::dvpp_pcc_f("fleet")))
+        );
+        assert_eq!(
+            from("f3", der::MU_P),
+            Some(("operator_fleet".into(), op::der_mu_p(3)))
+        );
+        assert_eq!(
+            from("operator_fleet", &op::der_p(3)),
+            Some((GRID.into(), grid::der_p(6)))
+        );
+        // The BESS closes the two low-pass units of its own DVPP only.
+        assert_eq!(start_of(&mds["bess"], der::ADPF_P_N_LPF), Some(2.0));
+    }
+
+    /// The error bundling `text` (a scenario file body) gives.
+    fn bundle_error(text: &str) -> String {
+        let dir = std::env::temp_dir().join(format!("xtask-bad-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("bad.toml");
+        std::fs::write(&path, text).unwrap();
+        let mut one = |_: &Build| -> Result<ModelDescription, String> { Err("built".into()) };
+        let e = bundle(&path, &dir.join("out"), &mut one).unwrap_err();
+        let _ = std::fs::remove_dir_all(&dir);
+        e
+    }
+
+    #[test]
+    fn a_complement_closing_more_low_pass_units_than_it_can_is_refused() {
+        let dir = std::env::temp_dir().join(format!("xtask-lpf-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let path = dir.join("many_lpf.toml");
+        let mut text = String::from(
+            "description = \"many\"\n[experiment]\nstop = 1.0\nstep = 1e-3\n\
+             [grid]\ncase = \"ieee9_dvpp\"\n[dvpp]\nS_dvpp = 96.0\nH = 5.55\nD = 33.33\n\
+             Dq = 0.01\n[operator]\n",
+        );
+        for name in ["wind", "pv", "bess"] {
+            text += &format!("[[der]]\nname = \"{name}\"\npreset = \"{name}\"\n");
+        }
+        // Seven more low-pass units: the BESS would close nine.
+        text += "[[fleet]]\nname = \"w\"\npreset = \"wind\"\ncount = 7\nbuses = [5]\nrating_mva = 70.0\n";
+        std::fs::write(&path, text).unwrap();
+        let e = try_bundled(&path).map(|_| ()).unwrap_err();
+        assert!(
+            e.contains("would close 9 low-pass units") && e.contains("at most 8"),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn bad_fleets_and_dvpp_names_are_refused_with_clear_errors() {
+        let head = "description = \"bad\"\n[experiment]\nstop = 1.0\nstep = 1e-3\n\
+                    [grid]\ncase = \"ieee9_dvpp\"\ncase_slots = false\n[operator]\n";
+        let one = "[dvpp]\nS_dvpp = 96.0\nH = 5.55\nD = 33.33\nDq = 0.01\n";
+        let named = "[dvpp.a]\nS_dvpp = 96.0\nH = 5.55\nD = 33.33\nDq = 0.01\n";
+        let fleet = |extra: &str| {
+            format!(
+                "[[fleet]]\nname = \"u\"\ncount = 4\nbuses = [2, 5]\nrating_mva = 10.0\n{extra}"
+            )
+        };
+        for (text, expected) in [
+            (
+                format!("{head}{one}{}", fleet("").replace("count = 4", "count = 0")),
+                "count = 0",
+            ),
+            (
+                format!("{head}{one}{}", fleet("").replace("[2, 5]", "[2, 42]")),
+                "bus 42 is not a bus",
+            ),
+            (
+                format!("{head}{one}{}", fleet("").replace("[2, 5]", "[]")),
+                "buses is empty",
+            ),
+            (
+                format!("{head}{one}{}", fleet("").replace("10.0", "0.0")),
+                "total rating is > 0",
+            ),
+            (
+                format!("{head}{named}{}", fleet("dvpp = \"b\"\n")),
+                "unknown DVPP 'b'",
+            ),
+            (
+                format!("{head}{named}{}", fleet("")),
+                "every DER names its DVPP",
+            ),
+            (
+                format!("{head}{one}{}", fleet("dvpp = \"a\"\n")),
+                "no named DVPPs",
+            ),
+            (
+                format!(
+                    "{head}{named}[dvpp.b]\nS_dvpp = 9.0\nH = 1.0\nD = 1.0\nDq = 0.01\n{}",
+                    fleet("dvpp = \"a\"\n")
+                ),
+                "[dvpp.b]: no DER belongs to it",
+            ),
+            (
+                format!("{head}{named}[dvpp.a.extra]\n{}", fleet("dvpp = \"a\"\n")),
+                "extra",
+            ),
+            (
+                format!("{head}[dvpp]\nH = 5.0\n{}", fleet("")),
+                "'H' is neither",
+            ),
+            (
+                format!(
+                    "{head}{}",
+                    one.replace("Dq = 0.01", "Dq = 0.01\npcc_bus = 2")
+                ),
+                "pcc_bus: only a named DVPP",
+            ),
+            (
+                format!("{head}{one}"),
+                "case_slots = false leaves no DER slot",
+            ),
+            (
+                format!("{head}{one}{}", fleet("").replace("\"u\"", "\"operator_\"")),
+                "must be unique",
+            ),
+        ] {
+            let e = bundle_error(&text);
+            assert!(e.contains(expected), "expected '{expected}' in: {e}");
+        }
     }
 }

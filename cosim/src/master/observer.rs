@@ -68,18 +68,28 @@ impl Observer for Recorder {
 /// a file named `path` is always a complete run, and a `.partial` file (left by an interrupted
 /// or failed run) holds every complete row up to where the run stopped; a run that stops before
 /// its first row leaves no file. An existing file at `path` is replaced only by a complete run.
+/// A `path` that exists and is not a regular file or directory (`/dev/null`, a named pipe) is
+/// written directly: renaming a file over it would replace the device.
 pub struct CsvWriter {
     path: PathBuf,
     partial: PathBuf,
+    /// Written in place (a device or pipe), no `.partial`.
+    direct: bool,
     out: Option<BufWriter<std::fs::File>>,
     rows: u64,
 }
 
 impl CsvWriter {
     pub fn new(path: &Path) -> CsvWriter {
+        let direct = std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir());
         CsvWriter {
             path: path.to_path_buf(),
-            partial: partial_path(path),
+            partial: if direct {
+                path.to_path_buf()
+            } else {
+                partial_path(path)
+            },
+            direct,
             out: None,
             rows: 0,
         }
@@ -104,7 +114,12 @@ pub fn partial_path(path: &Path) -> PathBuf {
 
 impl Observer for CsvWriter {
     fn start(&mut self, run: &RunInfo) -> Result<(), Error> {
-        let file = std::fs::File::create(&self.partial).map_err(|e| self.io(e))?;
+        let file = if self.direct {
+            std::fs::OpenOptions::new().write(true).open(&self.partial)
+        } else {
+            std::fs::File::create(&self.partial)
+        }
+        .map_err(|e| self.io(e))?;
         let mut out = BufWriter::with_capacity(1 << 16, file);
         write_header(&mut out, run.columns).map_err(|e| self.io(e))?;
         self.out = Some(out);
@@ -127,6 +142,9 @@ impl Observer for CsvWriter {
         };
         // Flushing complete rows only: a row is written whole into the buffer before the next.
         let file = out.into_inner().map_err(|e| self.io(e.into_error()))?;
+        if self.direct {
+            return Ok(());
+        }
         file.sync_data().map_err(|e| self.io(e))?;
         drop(file);
         if *end != End::Completed && self.rows == 0 {
@@ -203,5 +221,51 @@ impl Observer for Progress {
             eprintln!();
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::io::Read;
+    use std::os::unix::fs::FileTypeExt;
+
+    #[test]
+    fn a_named_pipe_is_written_in_place_and_stays_a_pipe() {
+        let dir = std::env::temp_dir().join(format!("dvpp-csv-fifo-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let fifo = dir.join("out.csv");
+        let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        // The read end first, non-blocking, so that the writer's open does not wait and a
+        // writer that replaced the pipe leaves it empty rather than hanging the test.
+        let mut reader = {
+            use std::os::unix::fs::OpenOptionsExt;
+            std::fs::OpenOptions::new()
+                .read(true)
+                .custom_flags(libc::O_NONBLOCK)
+                .open(&fifo)
+                .unwrap()
+        };
+        let columns = ["time".to_string(), "a.y".to_string()];
+        let info = RunInfo {
+            system: "s",
+            columns: &columns,
+            start: 0.0,
+            stop: 1.0,
+        };
+        let mut w = CsvWriter::new(&fifo);
+        w.start(&info).unwrap();
+        w.sample(&[0.0, 1.5]).unwrap();
+        w.finish(&End::Completed).unwrap();
+        let mut text = String::new();
+        let _ = reader.read_to_string(&mut text);
+        assert!(text.starts_with("time,a.y\n"), "{text}");
+        assert_eq!(text.lines().count(), 2, "{text}");
+        let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
+        assert!(kind.is_fifo(), "the pipe was replaced: {kind:?}");
+        assert!(!partial_path(&fifo).exists());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -132,18 +132,14 @@ fn main() -> ExitCode {
 /// Build the cdylibs and describe binaries of `fmus` with the `ship` profile (release with LTO),
 /// and their win64 cdylibs where the cross toolchain is installed.
 fn build_release(fmus: &[&catalog::Fmu]) -> Result {
-    // The cross build first: on a fresh clone, a cross build run right after the first native
-    // one failed in cargo's query of the target ("failed to run `rustc` to learn about
-    // target-specific information", rustc reporting stray compiler output as its empty
-    // input), every time and also when retried; run first, it builds.
-    let packages: Vec<&str> = fmus.iter().map(|f| f.package).collect();
-    win64::build(cargo, "ship", &packages)?;
     let mut c = cargo();
     c.args(["build", "--profile", "ship"]);
     for fmu in fmus {
         c.args(["--package", fmu.package]);
     }
-    run(&mut c)
+    run(&mut c)?;
+    let packages: Vec<&str> = fmus.iter().map(|f| f.package).collect();
+    win64::build(cargo, "ship", &packages)
 }
 
 /// Write one `.fmu`: modelDescription.xml from the describe binary, the binaries (linux64, and

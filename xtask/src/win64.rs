@@ -75,7 +75,7 @@ fn missing() -> Vec<String> {
 
 /// Cross-build the cdylibs of `packages` for [`TARGET`] with `profile` when the toolchain is
 /// here (and [`SWITCH`] is not `0`); otherwise say in one line what is left out and how to add it.
-pub fn build(cargo: impl Fn() -> Command, profile: &str, packages: &[&str]) -> crate::Result {
+pub fn build(cargo: impl FnOnce() -> Command, profile: &str, packages: &[&str]) -> crate::Result {
     let off = std::env::var(SWITCH).is_ok_and(|v| v == "0");
     let missing = missing();
     let reason = if off {
@@ -94,28 +94,12 @@ pub fn build(cargo: impl Fn() -> Command, profile: &str, packages: &[&str]) -> c
         let _ = BUILT.set(false);
         return Ok(());
     }
-    let command = || {
-        let mut c = cargo();
-        c.args(["build", "--profile", profile, "--target", TARGET, "--lib"]);
-        for p in packages {
-            c.args(["--package", p]);
-        }
-        c
-    };
-    if let Err(e) = crate::run(&mut command()) {
-        // On a fresh clone, the first cross build right after the first native one has been
-        // seen to fail in cargo's query of the target ("failed to run `rustc` to learn about
-        // target-specific information": rustc, given an empty stdin, reports stray compiler
-        // output as its input), and cargo caches that failure in `.rustc_info.json`. The same
-        // query run again succeeds; a real build error fails twice.
-        let cache = crate::target_dir().join(".rustc_info.json");
-        println!(
-            "bundle: the win64 build failed ({e}); once more without {}",
-            cache.display()
-        );
-        let _ = std::fs::remove_file(&cache);
-        crate::run(&mut command())?;
+    let mut c = cargo();
+    c.args(["build", "--profile", profile, "--target", TARGET, "--lib"]);
+    for p in packages {
+        c.args(["--package", p]);
     }
+    crate::run(&mut c)?;
     let _ = BUILT.set(true);
     Ok(())
 }

@@ -29,7 +29,7 @@ one per core; default 1) with results identical bit for bit; it pays where cores
 own resources. Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run
 that fails or is stopped by SIGINT/SIGTERM (at the next communication point) leaves every
 complete row in FILE.csv.partial and exits non-zero (1 on an error, 128 + the signal's number
-when interrupted). --no-csv records nothing (benchmarks). --plot draws the --signals (default:
+when interrupted); a device or named pipe (/dev/null) is written in place. --no-csv records nothing (benchmarks). --plot draws the --signals (default:
 the first six columns) against time as an SVG figure; it keeps the results in memory.
 
        cosim federate SYSTEM.ssp --component NAME[,NAME...] --broker HOST[:PORT] [--name FED]

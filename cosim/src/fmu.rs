@@ -264,34 +264,37 @@ fn unpack(
     Ok(())
 }
 
-/// With the archive's model description unpacked in `dir`: the description and a loaded
-/// library identical to the archive's binary, if there is one (and the FMU may share it).
+/// A loaded library identical to the archive's binary of `id`, if there is one.
 fn twin_in(
     archive: &mut zip::ZipArchive<std::fs::File>,
-    dir: &Path,
-) -> Result<Option<(ModelDescription, Arc<Library>)>, String> {
-    let Ok(xml) = std::fs::read_to_string(dir.join("modelDescription.xml")) else {
-        return Ok(None);
-    };
-    let Ok(description) = ModelDescription::from_xml(&xml) else {
-        return Ok(None);
-    };
-    let once = description
-        .co_simulation
-        .as_ref()
-        .is_some_and(|cs| cs.can_be_instantiated_only_once_per_process);
-    let Some(id) = description.model_identifier().map(str::to_owned) else {
-        return Ok(None);
-    };
+    id: &str,
+) -> Result<Option<Arc<Library>>, String> {
     let Ok(mut entry) = archive.by_name(&format!("binaries/linux64/{id}.so")) else {
         return Ok(None);
     };
-    if once || candidates(&id, entry.size()).is_empty() {
+    if candidates(id, entry.size()).is_empty() {
         return Ok(None);
     }
     let mut bytes = Vec::with_capacity(entry.size() as usize);
     std::io::Read::read_to_end(&mut entry, &mut bytes).map_err(|e| e.to_string())?;
-    Ok(Fmu::twin(&id, &bytes).map(|library| (description, library)))
+    Ok(Fmu::twin(id, &bytes))
+}
+
+/// An unpacked FMU's model description, its `modelIdentifier` and whether it may share its
+/// library (not `canBeInstantiatedOnlyOncePerProcess`).
+fn describe(dir: &Path) -> Result<(ModelDescription, String, bool), Error> {
+    let xml = std::fs::read_to_string(dir.join("modelDescription.xml"))
+        .map_err(|e| Error(format!("no modelDescription.xml: {e}")))?;
+    let description = ModelDescription::from_xml(&xml).map_err(|e| Error(e.to_string()))?;
+    let id = description
+        .model_identifier()
+        .map(str::to_owned)
+        .ok_or_else(|| Error("the FMU does not support Co-Simulation".into()))?;
+    let shareable = !description
+        .co_simulation
+        .as_ref()
+        .is_some_and(|cs| cs.can_be_instantiated_only_once_per_process);
+    Ok((description, id, shareable))
 }
 
 fn unique_dir(stem: &str) -> PathBuf {
@@ -321,29 +324,35 @@ impl Fmu {
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("fmu");
         let dir = unique_dir(stem);
         let binaries = |name: &str| name.starts_with("binaries/");
-        let unpacked = unpack(&mut archive, &dir, |n| !binaries(n)).and_then(|()| match sharing {
-            Sharing::Shared => twin_in(&mut archive, &dir),
-            Sharing::Separate => Ok(None),
-        });
-        let twin = match unpacked {
-            Ok(twin) => twin,
-            Err(e) => {
-                let _ = std::fs::remove_dir_all(&dir);
-                return Err(at(format!("cannot unpack: {e}")));
-            }
+        // The directory is ours from here: removed on every error, as by Drop.
+        let fail = |dir: &Path, e: String| {
+            let _ = std::fs::remove_dir_all(dir);
+            Err(at(e))
         };
-        if let Some((description, library)) = twin {
-            return Ok(Fmu {
-                description,
-                dir,
-                library,
-            });
+        if let Err(e) = unpack(&mut archive, &dir, |n| !binaries(n)) {
+            return fail(&dir, format!("cannot unpack: {e}"));
+        }
+        let (description, id, shareable) = match describe(&dir) {
+            Ok(d) => d,
+            Err(e) => return fail(&dir, e.0),
+        };
+        if sharing == Sharing::Shared && shareable {
+            match twin_in(&mut archive, &id) {
+                Ok(Some(library)) => {
+                    return Ok(Fmu {
+                        description,
+                        dir,
+                        library,
+                    })
+                }
+                Ok(None) => {}
+                Err(e) => return fail(&dir, format!("cannot unpack: {e}")),
+            }
         }
         if let Err(e) = unpack(&mut archive, &dir, binaries) {
-            let _ = std::fs::remove_dir_all(&dir);
-            return Err(at(format!("cannot unpack: {e}")));
+            return fail(&dir, format!("cannot unpack: {e}"));
         }
-        Fmu::load_dir_with(dir, sharing).map_err(|e| at(e.0))
+        Fmu::with_library(dir, (description, id, shareable), sharing).map_err(|e| at(e.0))
     }
 
     /// Load an FMU already unpacked in `dir` (the directory is removed when the `Fmu` drops, or
@@ -355,22 +364,25 @@ impl Fmu {
     /// [`Fmu::load_dir`] with a choice of sharing. The directory stays a complete unpacked FMU
     /// either way (its binary too, even when the library of another FMU serves it).
     pub fn load_dir_with(dir: PathBuf, sharing: Sharing) -> Result<Fmu, Error> {
-        // The directory is ours from here: removed on every error, as by Drop.
+        match describe(&dir) {
+            Ok(described) => Fmu::with_library(dir, described, sharing),
+            Err(e) => {
+                let _ = std::fs::remove_dir_all(&dir);
+                Err(e)
+            }
+        }
+    }
+
+    /// The described FMU unpacked in `dir` with its binary loaded (or shared); `dir` is removed
+    /// on error.
+    fn with_library(
+        dir: PathBuf,
+        (description, id, shareable): (ModelDescription, String, bool),
+        sharing: Sharing,
+    ) -> Result<Fmu, Error> {
         let fail = |dir: &Path, e: Error| {
             let _ = std::fs::remove_dir_all(dir);
             Err(e)
-        };
-        let xml_path = dir.join("modelDescription.xml");
-        let xml = match std::fs::read_to_string(&xml_path) {
-            Ok(x) => x,
-            Err(e) => return fail(&dir, Error(format!("no modelDescription.xml: {e}"))),
-        };
-        let description = match ModelDescription::from_xml(&xml) {
-            Ok(d) => d,
-            Err(e) => return fail(&dir, Error(e.to_string())),
-        };
-        let Some(id) = description.model_identifier().map(str::to_owned) else {
-            return fail(&dir, Error("the FMU does not support Co-Simulation".into()));
         };
         let binary = dir
             .join("binaries")
@@ -382,11 +394,7 @@ impl Fmu {
                 Error(format!("missing binary binaries/linux64/{id}.so")),
             );
         }
-        let once = description
-            .co_simulation
-            .as_ref()
-            .is_some_and(|cs| cs.can_be_instantiated_only_once_per_process);
-        let library = if sharing == Sharing::Shared && !once {
+        let library = if sharing == Sharing::Shared && shareable {
             Fmu::shared_library(&binary, &id)
         } else {
             Library::open(&binary, &id, None).map(Arc::new)

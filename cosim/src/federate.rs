@@ -62,6 +62,14 @@ pub struct Helics {
     path: PathBuf,
 }
 
+/// The HELICS core type federates and brokers use unless told otherwise: TCP over a single
+/// socket, so that only the broker listens (on one port) and the federates only connect out.
+/// Cores with a socket per federate (`zmq`, `tcp`) need ports the broker hands out unchecked.
+pub const DEFAULT_CORE: &str = "tcpss";
+/// How long a federate tries to join its broker before it gives up with the broker's address.
+pub const JOIN_TIMEOUT: Duration = Duration::from_secs(20);
+/// How long the launcher waits for its broker to listen.
+const BROKER_TIMEOUT: Duration = Duration::from_secs(20);
 const HELICS_DATA_TYPE_DOUBLE: c_int = 1;
 const HELICS_FLAG_UNINTERRUPTIBLE: c_int = 1;
 
@@ -221,6 +229,31 @@ enum Event {
 struct Schedule {
     rounds: Vec<Vec<Event>>,
     receive: Vec<Vec<usize>>,
+    /// The rounds this federate must be granted: those in which it takes a value from or
+    /// publishes one to another federate, and the last (so that no publication of the next
+    /// exchange overtakes a read of this one). It skips the others: a round costs a message
+    /// only from the federates that take part in it.
+    granted: Vec<bool>,
+}
+
+impl Schedule {
+    /// Mark the rounds a federate of the units `mine` must be granted ([`Schedule::granted`]).
+    fn grant_for(&mut self, sys: &System, mine: &[bool]) {
+        let remote = |i: usize| mine[sys.links[i].src] != mine[sys.links[i].dst];
+        let last = self.rounds.len() - 1;
+        self.granted = (0..self.rounds.len())
+            .map(|j| {
+                j == last
+                    || self.receive[j]
+                        .iter()
+                        .any(|&i| remote(i) && mine[sys.links[i].dst])
+                    || self.rounds[j].iter().any(|e| match *e {
+                        Event::Produce(i) => remote(i) && mine[sys.links[i].src],
+                        Event::Local(_) | Event::Consume(_) => false,
+                    })
+            })
+            .collect();
+    }
 }
 
 /// The rounds of one exchange walking `order`: a connection between two components is read at
@@ -275,7 +308,8 @@ pub struct FederateOptions {
     pub components: Vec<String>,
     /// The broker's address, `host` or `host:port`.
     pub broker: String,
-    /// HELICS core type (default `zmq`; `tcp`, `tcpss`, `zmqss` also work across machines).
+    /// HELICS core type (default [`DEFAULT_CORE`]; `zmq`, `tcp`, `zmqss` also work across
+    /// machines).
     pub core: Option<String>,
     /// The federate's name (default: the components joined with `+`).
     pub name: Option<String>,
@@ -318,7 +352,11 @@ struct Federate<'a> {
 impl Federate<'_> {
     /// The next round: request the next HELICS time and check it is the one granted.
     fn next_round(&mut self) -> Result<(), Error> {
-        let want = self.time + 1.0;
+        self.round(self.time + 1.0)
+    }
+
+    /// Round `want`: request that HELICS time and check it is the one granted.
+    fn round(&mut self, want: f64) -> Result<(), Error> {
         let (h, fed) = (self.h, self.fed);
         // SAFETY: a live federate handle; the error object is ours.
         let got = h.call("helicsFederateRequestTime", |e| unsafe {
@@ -429,9 +467,12 @@ impl Local {
         sched: &Schedule,
     ) -> Result<usize, Error> {
         let mut changed = 0;
+        let base = fed.time;
         for (j, events) in sched.rounds.iter().enumerate() {
-            if j > 0 {
-                fed.next_round()?;
+            // Initialization passes end on a count every federate publishes: all take part.
+            let take_part = phase == Phase::Init || sched.granted[j];
+            if j > 0 && take_part {
+                fed.round(base + j as f64)?;
                 for &i in &sched.receive[j] {
                     let l = &self.system.links[i];
                     if self.mine[l.dst] && !self.mine[l.src] {
@@ -548,8 +589,10 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
         return err("--component: no component given");
     }
     let name = o.name.clone().unwrap_or_else(|| o.components.join("+"));
-    let init = schedule(&system, &system.init_order, Phase::Init);
-    let step = schedule(&system, &system.step_order, Phase::Step);
+    let mut init = schedule(&system, &system.init_order, Phase::Init);
+    let mut step = schedule(&system, &system.step_order, Phase::Step);
+    init.grant_for(&system, &mine);
+    step.grant_for(&system, &mine);
     if std::env::var_os("COSIM_SCHEDULE").is_some() {
         for (j, r) in step.rounds.iter().enumerate() {
             for e in r {
@@ -569,7 +612,7 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     let load_time = started.elapsed();
 
     // The federate and its interfaces.
-    let core = o.core.as_deref().unwrap_or("zmq");
+    let core = o.core.as_deref().unwrap_or(DEFAULT_CORE);
     let fed = create_federate(&helics, &name, core, &o.broker)?;
     let mut fed = Federate {
         h: &helics,
@@ -651,7 +694,11 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
         name: name.clone(),
         steps: 0,
         init_rounds: local.init.rounds.len(),
-        step_rounds: local.step.rounds.len().saturating_sub(1).max(1),
+        step_rounds: local.step.granted[1..]
+            .iter()
+            .filter(|&&g| g)
+            .count()
+            .max(1),
         init_passes: 0,
         run_time: Duration::ZERO,
         load_time,
@@ -693,12 +740,15 @@ fn create_federate(h: &Helics, name: &str, core: &str, broker: &str) -> Result<H
         return err("HELICS: cannot create a federate info");
     }
     let result = (|| {
-        let core = cstring(core)?;
+        let core_c = cstring(core)?;
         // SAFETY: a live federate info, C strings alive across the calls.
         h.call("set core type", |e| unsafe {
-            (h.api.info_core_type)(info, core.as_ptr(), e)
+            (h.api.info_core_type)(info, core_c.as_ptr(), e)
         })?;
-        let init = cstring(&format!("--federates=1 --broker={broker} --timeout=30s"))?;
+        let init = cstring(&format!(
+            "--federates=1 --broker={broker} --timeout={}s",
+            JOIN_TIMEOUT.as_secs()
+        ))?;
         h.call("set core init string", |e| unsafe {
             (h.api.info_core_init)(info, init.as_ptr(), e)
         })?;
@@ -707,7 +757,12 @@ fn create_federate(h: &Helics, name: &str, core: &str, broker: &str) -> Result<H
         })?;
         let n = cstring(name)?;
         let fed = h.call(
-            &format!("cannot join the federation at broker {broker} as '{name}'"),
+            &format!(
+                "cannot join the federation at broker {broker} as '{name}' within {} s (no {core} \
+                 broker answered there, or it refused the federate: is the address right, is \
+                 the broker running, is the name unique?)",
+                JOIN_TIMEOUT.as_secs()
+            ),
             |e| unsafe { (h.api.create_value_federate)(n.as_ptr(), info, e) },
         )?;
         if fed.is_null() {
@@ -881,7 +936,7 @@ pub struct FederationOptions {
     pub out: Option<PathBuf>,
     pub helics_lib: Option<PathBuf>,
     pub opts: Options,
-    /// HELICS core type (default `zmq`).
+    /// HELICS core type (default [`DEFAULT_CORE`]).
     pub core: Option<String>,
     /// Where the federates write their CSVs (default: next to `out`).
     pub work_dir: Option<PathBuf>,
@@ -1033,10 +1088,78 @@ fn component_names(package: &ssp::Package) -> Vec<String> {
         .collect()
 }
 
+/// The broker's options besides core type, federate count, interface and port: one global time
+/// coordinator (every round is a barrier of all federates, so a grant takes one request to the
+/// broker and one answer instead of a negotiation among the federates' cores).
+const BROKER_FLAGS: [&str; 2] = ["--globaltime", "--loglevel=error"];
+
+/// A child process of the launcher, which ends with it (SIGTERM when the launcher dies, also by
+/// SIGKILL, so that no broker or federate outlives its federation).
+fn child(program: &Path) -> std::process::Command {
+    use std::os::unix::process::CommandExt;
+    let mut c = std::process::Command::new(program);
+    // SAFETY: prctl is async-signal-safe; it only sets this child's parent-death signal.
+    unsafe {
+        c.pre_exec(|| {
+            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
+                return Err(std::io::Error::last_os_error());
+            }
+            Ok(())
+        });
+    }
+    c
+}
+
+/// End a child and reap it.
+fn stop(c: &mut std::process::Child) {
+    let _ = c.kill();
+    let _ = c.wait();
+}
+
+/// `helics_broker` for `federates` federates on loopback, on a port the kernel chooses and holds
+/// for it (port 0): no other process can take it between choosing and listening.
+fn start_broker(exe: &Path, core: &str, federates: usize) -> Result<std::process::Child, Error> {
+    child(exe)
+        .args(["-f", &federates.to_string()])
+        .arg(format!("--coretype={core}"))
+        .args(BROKER_FLAGS)
+        .arg("--local_interface=tcp://127.0.0.1")
+        .arg("--port=0")
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .map_err(|e| Error(format!("cannot start {}: {e}", exe.display())))
+}
+
+/// The port the broker listens on, once it does (within [`BROKER_TIMEOUT`]).
+fn wait_listening(broker: &mut std::process::Child, exe: &Path) -> Result<u16, Error> {
+    let since = Instant::now();
+    loop {
+        if let Some(port) = crate::listen::port_of(broker.id()) {
+            return Ok(port);
+        }
+        if let Ok(Some(status)) = broker.try_wait() {
+            return err(format!("{} ended at once ({status})", exe.display()));
+        }
+        if let Some(signal) = crate::interrupt::requested() {
+            return err(format!(
+                "stopped by signal {signal} while the broker started"
+            ));
+        }
+        if since.elapsed() > BROKER_TIMEOUT {
+            return err(format!(
+                "{} does not listen on 127.0.0.1 after {} s",
+                exe.display(),
+                BROKER_TIMEOUT.as_secs()
+            ));
+        }
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
 /// Run the system as a federation on this machine: `helics_broker` on loopback, one
 /// `exe federate` process per group, their CSVs merged into `o.out` in the master's column order.
 pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationReport, Error> {
-    use std::process::{Command, Stdio};
+    use std::process::Stdio;
     let lib = find_library(o.helics_lib.as_deref())?;
     let broker_exe = find_broker(&lib)?;
     let package = ssp::read(&o.system)?;
@@ -1058,39 +1181,17 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
         PathBuf::from(d)
     });
     std::fs::create_dir_all(&dir).map_err(|e| Error(format!("{}: {e}", dir.display())))?;
-    // A free port on loopback for the broker.
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .map_err(|e| Error(format!("no free port on 127.0.0.1: {e}")))?
-        .port();
-    let core = o.core.as_deref().unwrap_or("zmq");
+    let core = o.core.as_deref().unwrap_or(DEFAULT_CORE);
     let started = Instant::now();
-    let mut broker = Command::new(&broker_exe)
-        .args(["-f", &feds.len().to_string()])
-        .arg(format!("--coretype={core}"))
-        .arg("--local_interface=tcp://127.0.0.1")
-        .arg(format!("--port={port}"))
-        .arg("--loglevel=error")
-        .stdout(Stdio::null())
-        .spawn()
-        .map_err(|e| Error(format!("cannot start {}: {e}", broker_exe.display())))?;
+    let mut broker = start_broker(&broker_exe, core, feds.len())?;
+    let port = match wait_listening(&mut broker, &broker_exe) {
+        Ok(p) => p,
+        Err(e) => {
+            stop(&mut broker);
+            return Err(e);
+        }
+    };
     let address = format!("127.0.0.1:{port}");
-    // The federates connect once the broker listens (HELICS gives up after a few attempts).
-    let listening = Instant::now();
-    while std::net::TcpStream::connect(&address).is_err() {
-        if let Ok(Some(status)) = broker.try_wait() {
-            return err(format!("{} ended at once ({status})", broker_exe.display()));
-        }
-        if listening.elapsed() > Duration::from_secs(30) {
-            let _ = broker.kill();
-            let _ = broker.wait();
-            return err(format!(
-                "{} does not listen on {address}",
-                broker_exe.display()
-            ));
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
     let mut timing = vec!["--core".to_owned(), core.to_owned()];
     if let Some(s) = o.opts.stop {
         timing.extend(["--stop".to_owned(), s.to_string()]);
@@ -1101,9 +1202,10 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
     let mut children = Vec::new();
     let mut parts = Vec::new();
     let mut commands = vec![format!(
-        "{} -f {} --coretype={core} --local_interface=tcp://BROKER_HOST --port={port}",
+        "{} -f {} --coretype={core} {} --local_interface=tcp://BROKER_HOST --port={port}",
         broker_exe.display(),
-        feds.len()
+        feds.len(),
+        BROKER_FLAGS.join(" ")
     )];
     let mut failure = None;
     for (k, g) in feds.iter().enumerate() {
@@ -1136,7 +1238,7 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
             )
             .join(" ")
         ));
-        match Command::new(exe)
+        match child(exe)
             .args(args(&address, &csv))
             .stdout(Stdio::piped())
             .spawn()
@@ -1153,6 +1255,12 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
     let mut summaries = vec![String::new(); children.len()];
     let mut running: Vec<Option<std::process::Child>> = children.into_iter().map(Some).collect();
     while failure.is_none() && running.iter().any(Option::is_some) {
+        if let Some(signal) = crate::interrupt::requested() {
+            failure = Some(Error(format!(
+                "stopped by signal {signal}: the broker and the federates were stopped"
+            )));
+            break;
+        }
         for k in 0..running.len() {
             let Some(c) = running[k].as_mut() else {
                 continue;
@@ -1182,12 +1290,11 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
         std::thread::sleep(Duration::from_millis(20));
     }
     for c in running.iter_mut().flatten() {
-        let _ = c.kill();
-        let _ = c.wait();
+        stop(c);
     }
     if failure.is_some() {
         // The broker waits for federates that never came: stop it (it is our child).
-        let _ = broker.kill();
+        stop(&mut broker);
     }
     let _ = broker.wait();
     let wall = started.elapsed();

@@ -11,6 +11,7 @@ mod dl;
 pub mod federate;
 pub mod fmu;
 pub mod interrupt;
+mod listen;
 pub mod master;
 pub mod ssp;
 pub mod table;

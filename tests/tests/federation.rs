@@ -231,3 +231,145 @@ fn twenty_units_as_twenty_federates() {
         );
     }
 }
+
+#[test]
+fn two_federations_started_at_the_same_moment_both_give_the_masters_results() {
+    let Some(lib) = helics() else { return };
+    let d = dir("federation-twins");
+    let system = scenario("case1_load");
+    let stop = "0.05";
+    let reference = d.join("master.csv");
+    master(&system, stop, &reference);
+    for round in 0..3 {
+        let runs: Vec<_> = (0..2)
+            .map(|k| {
+                let (system, lib) = (system.clone(), lib.clone());
+                let out = d.join(format!("twin{round}-{k}.csv"));
+                std::thread::spawn(move || {
+                    federation(&system, stop, None, &lib, &out);
+                    out
+                })
+            })
+            .collect();
+        for r in runs {
+            let out = r.join().expect("a federation failed");
+            assert_same_csv(&reference, &out, "a federation beside another");
+        }
+    }
+}
+
+#[test]
+fn a_federate_without_a_broker_fails_within_the_join_deadline_naming_the_broker() {
+    let Some(lib) = helics() else { return };
+    // A port that was free a moment ago: nothing listens there.
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a port")
+        .port();
+    let broker = format!("127.0.0.1:{port}");
+    let started = Instant::now();
+    let done = Command::new(cosim())
+        .arg("federate")
+        .arg(scenario("case1_load"))
+        .args(["--component", "grid", "--broker", &broker, "--helics-lib"])
+        .arg(&lib)
+        .output()
+        .expect("run cosim");
+    let took = started.elapsed();
+    assert!(!done.status.success());
+    let err = String::from_utf8_lossy(&done.stderr);
+    let deadline = dvpp_cosim::federate::JOIN_TIMEOUT;
+    assert!(
+        err.contains(&format!("cannot join the federation at broker {broker}"))
+            && err.contains(&format!("within {} s", deadline.as_secs())),
+        "{err}"
+    );
+    assert!(
+        took < deadline + std::time::Duration::from_secs(10),
+        "gave up after {took:?}"
+    );
+    eprintln!("no broker at {broker}: refused in {took:?}");
+}
+
+/// The processes whose parent is `pid` (Linux /proc).
+fn children(pid: u32) -> Vec<u32> {
+    let Ok(all) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    all.filter_map(|e| e.ok()?.file_name().to_str()?.parse::<u32>().ok())
+        .filter(|p| {
+            std::fs::read_to_string(format!("/proc/{p}/stat"))
+                .ok()
+                .and_then(|s| {
+                    // `pid (comm) state ppid ...`: the comm may hold spaces.
+                    let rest = s.rsplit_once(')')?.1;
+                    rest.split_whitespace().nth(1)?.parse::<u32>().ok()
+                })
+                == Some(pid)
+        })
+        .collect()
+}
+
+/// Whether process `pid` still runs (a zombie does not).
+fn alive(pid: u32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|s| {
+        s.rsplit_once(')')
+            .and_then(|(_, rest)| rest.split_whitespace().next())
+            .is_some_and(|state| state != "Z")
+    })
+}
+
+#[test]
+fn a_terminated_federation_stops_its_broker_and_its_federates() {
+    let Some(lib) = helics() else { return };
+    let d = dir("federation-sigterm");
+    for signal in [libc::SIGTERM, libc::SIGHUP, libc::SIGKILL] {
+        let mut launcher = Command::new(cosim())
+            .arg("federation")
+            .arg(scenario("case1_load"))
+            .args(["--stop", "20", "--helics-lib"])
+            .arg(&lib)
+            .arg("--out")
+            .arg(d.join(format!("stopped{signal}.csv")))
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("start cosim federation");
+        // The broker and the five federates.
+        let since = Instant::now();
+        let mut kids = Vec::new();
+        while kids.len() < 6 {
+            assert!(
+                since.elapsed().as_secs() < 60,
+                "the federation did not start: {kids:?}"
+            );
+            std::thread::sleep(std::time::Duration::from_millis(50));
+            kids = children(launcher.id());
+        }
+        std::thread::sleep(std::time::Duration::from_millis(500));
+        // SAFETY: a signal to our own child.
+        assert_eq!(unsafe { libc::kill(launcher.id() as i32, signal) }, 0);
+        let status = launcher.wait().expect("wait for the launcher");
+        assert!(!status.success(), "signal {signal}: {status}");
+        let since = Instant::now();
+        while kids.iter().any(|&k| alive(k)) {
+            assert!(
+                since.elapsed().as_secs() < 10,
+                "signal {signal}: still running after the launcher ended: {:?}",
+                kids.iter().filter(|&&k| alive(k)).collect::<Vec<_>>()
+            );
+            std::thread::sleep(std::time::Duration::from_millis(50));
+        }
+        if signal != libc::SIGKILL {
+            let mut err = String::new();
+            use std::io::Read;
+            launcher
+                .stderr
+                .take()
+                .expect("stderr")
+                .read_to_string(&mut err)
+                .expect("read stderr");
+            assert!(err.contains("stopped by signal"), "{err}");
+        }
+    }
+}

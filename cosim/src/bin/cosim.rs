@@ -33,15 +33,17 @@ when interrupted); a device or named pipe (/dev/null) is written in place. --no-
 the first six columns) against time as an SVG figure; it keeps the results in memory.
 
        cosim federate SYSTEM.ssp --component NAME[,NAME...] --broker HOST[:PORT] [--name FED]
-             [--out FILE.csv] [--stop T] [--step H] [--helics-lib PATH] [--core zmq|tcp|...]
+             [--out FILE.csv] [--stop T] [--step H] [--helics-lib PATH] [--core tcpss|zmq|tcp|...]
        cosim federation SYSTEM.ssp [--groups a,b;c;d] [--out FILE.csv] [--stop T] [--step H]
-             [--helics-lib PATH] [--core zmq|tcp|...]
+             [--helics-lib PATH] [--core tcpss|zmq|tcp|...]
 
-`federate` runs the listed components as one HELICS value federate (zmq core by default) with the results
-of --algorithm jacobi bit for bit, writing their outputs to FILE.csv; `federation` runs the whole
-system so on this machine (helics_broker on 127.0.0.1, one federate process per group, by default
-one per component), merges the CSVs (default <system name>.csv) and prints the commands for
-several machines. libhelics (the `helics` Python wheel): --helics-lib, $HELICS_LIB, or the test
+`federate` runs the listed components as one HELICS value federate (tcpss core by default: one
+TCP connection out to the broker, no port of its own) with the results of --algorithm jacobi bit
+for bit, writing their outputs to FILE.csv; a federate that cannot join its broker within 20 s
+fails naming the broker. `federation` runs the whole system so on this machine (helics_broker on
+127.0.0.1 on a port the kernel picks, one federate process per group, by default one per
+component), merges the CSVs (default <system name>.csv) and prints the commands for several
+machines; SIGINT/SIGTERM/SIGHUP, or the launcher's death, stop the broker and every federate. libhelics (the `helics` Python wheel): --helics-lib, $HELICS_LIB, or the test
 venv target/venv (docs/scaling.md).";
 
 #[derive(Default)]
@@ -158,9 +160,13 @@ fn main() -> ExitCode {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
     // A federate blocks in HELICS calls: SIGINT/SIGTERM keep their default (end the process).
+    // The launcher stops its broker and federates on them.
     match std::env::args().nth(1).as_deref() {
         Some("federate") => return federate_main(),
-        Some("federation") => return federation_main(),
+        Some("federation") => {
+            interrupt::install();
+            return federation_main();
+        }
         _ => {}
     }
     interrupt::install();

@@ -828,6 +828,30 @@ fn parse_tree(xml: &str, file: &str) -> Result<Node, Error> {
                     "{file}: <{parent}>: unexpected CDATA at line {line} (SSP elements hold no text outside <ssc:Annotation>)"
                 )));
             }
+            // An entity declared in a DTD would stand for content the reader never sees (a
+            // connection, a parameter): documents with a DTD are refused, whatever it declares.
+            Event::DocType(_) => {
+                return Err(Error(format!(
+                    "{file}: a <!DOCTYPE> declaration at line {line}: DTDs and entities are not supported"
+                )))
+            }
+            Event::GeneralRef(r) => {
+                let name = String::from_utf8_lossy(r.as_ref()).into_owned();
+                let predefined =
+                    r.is_char_ref() || ["lt", "gt", "amp", "apos", "quot"].contains(&name.as_str());
+                if !predefined {
+                    return Err(Error(format!(
+                        "{file}: entity reference &{name}; at line {line}: DTDs and entities are not supported"
+                    )));
+                }
+                if !inside_free && !stack.is_empty() {
+                    let parent = stack.last().map_or("", |n| n.qname.as_str());
+                    return Err(Error(format!(
+                        "{file}: <{parent}>: unexpected text \"&{name};\" at line {line} (SSP elements hold no text outside <ssc:Annotation>)"
+                    )));
+                }
+                continue;
+            }
             Event::Eof => break,
             _ => continue,
         };
@@ -1066,10 +1090,18 @@ fn read_system(d: &Doc, n: &Node, dir: &Path) -> Result<System, Error> {
     let mut components: Vec<Component> = Vec::new();
     let mut connections: Vec<&Node> = Vec::new();
     let mut system_bindings: Vec<&Node> = Vec::new();
+    let mut seen_connectors = false;
     for (ns, local, c) in ssp_children(n) {
         match (ns, local) {
             // The system's own connectors: fine as long as nothing connects to them.
+            (Ns::Ssd, "Connectors") if seen_connectors => {
+                return Err(d.err(
+                    c,
+                    format_args!("system '{name}' has a second <ssd:Connectors>"),
+                ))
+            }
             (Ns::Ssd, "Connectors") => {
+                seen_connectors = true;
                 read_connectors(d, c)?;
             }
             (Ns::Ssd, "ParameterBindings") => system_bindings.push(c),
@@ -1182,9 +1214,19 @@ fn read_component(d: &Doc, n: &Node, dir: &Path) -> Result<Component, Error> {
     }
     let mut connectors = Vec::new();
     let mut parameters = Vec::new();
+    let mut seen_connectors = false;
     for (ns, local, c) in ssp_children(n) {
         match (ns, local) {
-            (Ns::Ssd, "Connectors") => connectors.extend(read_connectors(d, c)?),
+            (Ns::Ssd, "Connectors") if seen_connectors => {
+                return Err(d.err(
+                    c,
+                    format_args!("component '{name}' has a second <ssd:Connectors>"),
+                ))
+            }
+            (Ns::Ssd, "Connectors") => {
+                seen_connectors = true;
+                connectors.extend(read_connectors(d, c)?)
+            }
             (Ns::Ssd, "ParameterBindings") => {
                 for (p, _) in read_bindings(d, c, dir)? {
                     set_parameter(&mut parameters, p);

@@ -1,7 +1,8 @@
 //! Packages from elsewhere cannot reach outside the directories the master unpacks them into:
 //! archive entries that are links, devices or paths leaving the directory are refused, the
 //! unpacking directories are fresh and private (a directory planted under a predictable name is
-//! never used), and parameter files that are not regular files of a bounded size are refused.
+//! never used), and the SSD reader refuses DTDs, repeated connector blocks and parameter files
+//! that are not regular files of a bounded size.
 
 use dvpp_cosim::ssp;
 use dvpp_cosim::tmp::TempDir;
@@ -221,6 +222,52 @@ fn an_ssp_is_unpacked_into_a_fresh_private_directory() {
     let dir = a.dir.clone();
     drop(a);
     assert!(!dir.exists(), "removed on drop");
+}
+
+#[test]
+fn a_dtd_and_entity_references_are_refused() {
+    // The connection written through an internal entity was dropped silently.
+    let through_entity = format!(
+        "<!DOCTYPE ssd:SystemStructureDescription [<!ENTITY c '{}'>]>\n{}",
+        CONNECTION.replace('"', "&quot;"),
+        ssd("", "&c;").replacen("<?xml version=\"1.0\"?>\n", "", 1)
+    );
+    let e = ssp::parse_ssd(&through_entity, Path::new("."))
+        .unwrap_err()
+        .0;
+    assert!(e.contains("DOCTYPE") && !e.contains('\n'), "{e}");
+    // Without the declaration, the reference alone.
+    let e = ssp::parse_ssd(&ssd("", "&c;"), Path::new("."))
+        .unwrap_err()
+        .0;
+    assert!(e.contains("&c;") && !e.contains('\n'), "{e}");
+    // The plain document is fine.
+    let s = ssp::parse_ssd(&ssd("", CONNECTION), Path::new(".")).unwrap();
+    assert_eq!(s.connections.len(), 1);
+}
+
+#[test]
+fn a_repeated_connectors_block_is_refused() {
+    let doubled = ssd("", CONNECTION).replacen(
+        "</ssd:Connectors>",
+        "</ssd:Connectors><ssd:Connectors><ssd:Connector name=\"y\" kind=\"output\"><ssc:Real/></ssd:Connector></ssd:Connectors>",
+        1,
+    );
+    let e = ssp::parse_ssd(&doubled, Path::new(".")).unwrap_err().0;
+    assert!(
+        e.contains("second <ssd:Connectors>") && e.contains("'a'"),
+        "{e}"
+    );
+    let system = ssd("", CONNECTION).replacen(
+        "<ssd:System name=\"sys\">",
+        "<ssd:System name=\"sys\"><ssd:Connectors/><ssd:Connectors/>",
+        1,
+    );
+    let e = ssp::parse_ssd(&system, Path::new(".")).unwrap_err().0;
+    assert!(
+        e.contains("second <ssd:Connectors>") && e.contains("'sys'"),
+        "{e}"
+    );
 }
 
 fn binding(source: &str) -> String {

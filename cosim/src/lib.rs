@@ -5,7 +5,7 @@
 //! logger); [`ssp`] is the SSP data model, reader and writer; [`master`] couples the units of a
 //! system with an [`master::Algorithm`] (on one thread or several) and hands each communication
 //! point to [`master::Observer`]s; [`table`] holds results and the master's clock; [`interrupt`]
-//! turns SIGINT/SIGTERM into a clean stop; [`tmp`] makes the private temporary
+//! turns SIGINT/SIGTERM/SIGHUP into a clean stop; [`tmp`] makes the private temporary
 //! directories FMUs and SSPs are unpacked into. The `cosim` binary is the command-line front end.
 
 mod archive;

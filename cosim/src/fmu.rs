@@ -2,6 +2,7 @@
 //! FMUs whose binaries are identical (same `modelIdentifier`, same bytes) share one dlopen
 //! ([`Library`]) and are instantiated from it many times, each with its own unpacked resources.
 
+use crate::archive::unpack;
 use crate::dl::dl_api;
 use model_description::ModelDescription;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
@@ -233,37 +234,6 @@ fn err<T>(m: impl Into<String>) -> Result<T, Error> {
     Err(Error(m.into()))
 }
 
-/// Unpack the entries of `archive` whose names pass `keep` into `dir` (names that would leave
-/// `dir` are refused).
-fn unpack(
-    archive: &mut zip::ZipArchive<std::fs::File>,
-    dir: &Path,
-    keep: impl Fn(&str) -> bool,
-) -> Result<(), String> {
-    for i in 0..archive.len() {
-        let mut entry = archive.by_index(i).map_err(|e| e.to_string())?;
-        if !keep(entry.name()) {
-            continue;
-        }
-        let rel = entry.enclosed_name().ok_or(format!(
-            "entry '{}' leaves the FMU's directory",
-            entry.name()
-        ))?;
-        let out = dir.join(rel);
-        let made = |e: std::io::Error| format!("{}: {e}", out.display());
-        if entry.is_dir() {
-            std::fs::create_dir_all(&out).map_err(made)?;
-            continue;
-        }
-        if let Some(parent) = out.parent() {
-            std::fs::create_dir_all(parent).map_err(made)?;
-        }
-        let mut file = std::fs::File::create(&out).map_err(made)?;
-        std::io::copy(&mut entry, &mut file).map_err(made)?;
-    }
-    Ok(())
-}
-
 /// A loaded library identical to the archive's binary of `id`, if there is one.
 fn twin_in(
     archive: &mut zip::ZipArchive<std::fs::File>,
@@ -283,8 +253,8 @@ fn twin_in(
 /// An unpacked FMU's model description, its `modelIdentifier` and whether it may share its
 /// library (not `canBeInstantiatedOnlyOncePerProcess`).
 fn describe(dir: &Path) -> Result<(ModelDescription, String, bool), Error> {
-    let xml = std::fs::read_to_string(dir.join("modelDescription.xml"))
-        .map_err(|e| Error(format!("no modelDescription.xml: {e}")))?;
+    let xml = crate::archive::read_text(&dir.join("modelDescription.xml"))
+        .map_err(|e| Error(format!("modelDescription.xml: {e}")))?;
     let description = ModelDescription::from_xml(&xml).map_err(|e| Error(e.to_string()))?;
     let id = description
         .model_identifier()
@@ -295,13 +265,6 @@ fn describe(dir: &Path) -> Result<(ModelDescription, String, bool), Error> {
         .as_ref()
         .is_some_and(|cs| cs.can_be_instantiated_only_once_per_process);
     Ok((description, id, shareable))
-}
-
-fn unique_dir(stem: &str) -> PathBuf {
-    use std::sync::atomic::AtomicU64;
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    std::env::temp_dir().join(format!("dvpp-cosim-{}-{n}-{stem}", std::process::id()))
 }
 
 impl Fmu {
@@ -322,15 +285,21 @@ impl Fmu {
         let mut archive = zip::ZipArchive::new(file)
             .map_err(|e| Error(format!("{} is not an FMU archive: {e}", path.display())))?;
         let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("fmu");
-        let dir = unique_dir(stem);
+        let dir = crate::tmp::create_dir(&format!("fmu-{stem}"))
+            .map_err(|e| Error(format!("cannot unpack {}: {e}", path.display())))?;
         let binaries = |name: &str| name.starts_with("binaries/");
         // The directory is ours from here: removed on every error, as by Drop.
         let fail = |dir: &Path, e: String| {
             let _ = std::fs::remove_dir_all(dir);
             Err(at(e))
         };
-        if let Err(e) = unpack(&mut archive, &dir, |n| !binaries(n)) {
-            return fail(&dir, format!("cannot unpack: {e}"));
+        // Unpacking errors name the archive and the entry already.
+        let unpacked = |dir: &Path, e: String| {
+            let _ = std::fs::remove_dir_all(dir);
+            Err(Error(e))
+        };
+        if let Err(e) = unpack(&mut archive, path, &dir, |n| !binaries(n)) {
+            return unpacked(&dir, e);
         }
         let (description, id, shareable) = match describe(&dir) {
             Ok(d) => d,
@@ -349,8 +318,8 @@ impl Fmu {
                 Err(e) => return fail(&dir, format!("cannot unpack: {e}")),
             }
         }
-        if let Err(e) = unpack(&mut archive, &dir, binaries) {
-            return fail(&dir, format!("cannot unpack: {e}"));
+        if let Err(e) = unpack(&mut archive, path, &dir, binaries) {
+            return unpacked(&dir, e);
         }
         Fmu::with_library(dir, (description, id, shareable), sharing).map_err(|e| at(e.0))
     }

@@ -28,6 +28,7 @@
 //! (names `component.variable`), linear transformations and the OSP step-size annotation.  It does
 //! not open FMUs: the master checks the FMU files and their variables itself.
 
+use crate::tmp::TempDir;
 use std::fmt;
 use std::io::Write as _;
 use std::path::{Path, PathBuf};
@@ -578,49 +579,6 @@ impl Package {
     }
 }
 
-/// A directory removed (with its contents) on drop.
-#[derive(Debug)]
-struct TempDir(PathBuf);
-
-impl TempDir {
-    fn new(stem: &str) -> Result<TempDir, Error> {
-        use std::sync::atomic::{AtomicU64, Ordering};
-        static COUNTER: AtomicU64 = AtomicU64::new(0);
-        let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.subsec_nanos())
-            .unwrap_or(0);
-        let stem: String = stem
-            .chars()
-            .map(|c| {
-                if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
-        let dir = std::env::temp_dir().join(format!(
-            "dvpp-ssp-{}-{n}-{nanos}-{stem}",
-            std::process::id()
-        ));
-        std::fs::create_dir(&dir).map_err(|e| {
-            Error(format!(
-                "cannot create temporary directory {}: {e}",
-                dir.display()
-            ))
-        })?;
-        Ok(TempDir(dir))
-    }
-}
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// Write into `dir` an SSP directory of `n` unconnected components `unit1` … `unitN` of the FMU
 /// at `fmu` (copied to `resources/unit.fmu`), each recording every output, stepping by `step`:
 /// the systems of the scale benchmark and of the federation test.
@@ -699,20 +657,19 @@ pub fn read(path: &Path) -> Result<Package, Error> {
         ))));
     }
     let stem = path.file_stem().and_then(|s| s.to_str()).unwrap_or("ssp");
-    let temp = TempDir::new(stem)?;
-    archive
-        .extract(&temp.0)
+    let temp = TempDir::new(&format!("ssp-{stem}"))
         .map_err(|e| at(Error(format!("cannot unpack: {e}"))))?;
-    let system = read_ssd_file(&temp.0.join(SSD_FILE), &temp.0, SSD_FILE).map_err(at)?;
+    crate::archive::unpack(&mut archive, path, temp.path(), |_| true).map_err(Error)?;
+    let system = read_ssd_file(&temp.path().join(SSD_FILE), temp.path(), SSD_FILE).map_err(at)?;
     Ok(Package {
         system,
-        dir: temp.0.clone(),
+        dir: temp.path().to_path_buf(),
         _temp: Some(temp),
     })
 }
 
 fn read_ssd_file(path: &Path, dir: &Path, label: &str) -> Result<System, Error> {
-    let xml = std::fs::read_to_string(path)
+    let xml = crate::archive::read_text(path)
         .map_err(|e| Error(format!("{label}: cannot read {}: {e}", path.display())))?;
     parse_ssd_labelled(&xml, dir, label)
 }
@@ -870,6 +827,30 @@ fn parse_tree(xml: &str, file: &str) -> Result<Node, Error> {
                 return Err(Error(format!(
                     "{file}: <{parent}>: unexpected CDATA at line {line} (SSP elements hold no text outside <ssc:Annotation>)"
                 )));
+            }
+            // An entity declared in a DTD would stand for content the reader never sees (a
+            // connection, a parameter): documents with a DTD are refused, whatever it declares.
+            Event::DocType(_) => {
+                return Err(Error(format!(
+                    "{file}: a <!DOCTYPE> declaration at line {line}: DTDs and entities are not supported"
+                )))
+            }
+            Event::GeneralRef(r) => {
+                let name = String::from_utf8_lossy(r.as_ref()).into_owned();
+                let predefined =
+                    r.is_char_ref() || ["lt", "gt", "amp", "apos", "quot"].contains(&name.as_str());
+                if !predefined {
+                    return Err(Error(format!(
+                        "{file}: entity reference &{name}; at line {line}: DTDs and entities are not supported"
+                    )));
+                }
+                if !inside_free && !stack.is_empty() {
+                    let parent = stack.last().map_or("", |n| n.qname.as_str());
+                    return Err(Error(format!(
+                        "{file}: <{parent}>: unexpected text \"&{name};\" at line {line} (SSP elements hold no text outside <ssc:Annotation>)"
+                    )));
+                }
+                continue;
             }
             Event::Eof => break,
             _ => continue,
@@ -1109,10 +1090,18 @@ fn read_system(d: &Doc, n: &Node, dir: &Path) -> Result<System, Error> {
     let mut components: Vec<Component> = Vec::new();
     let mut connections: Vec<&Node> = Vec::new();
     let mut system_bindings: Vec<&Node> = Vec::new();
+    let mut seen_connectors = false;
     for (ns, local, c) in ssp_children(n) {
         match (ns, local) {
             // The system's own connectors: fine as long as nothing connects to them.
+            (Ns::Ssd, "Connectors") if seen_connectors => {
+                return Err(d.err(
+                    c,
+                    format_args!("system '{name}' has a second <ssd:Connectors>"),
+                ))
+            }
             (Ns::Ssd, "Connectors") => {
+                seen_connectors = true;
                 read_connectors(d, c)?;
             }
             (Ns::Ssd, "ParameterBindings") => system_bindings.push(c),
@@ -1225,9 +1214,19 @@ fn read_component(d: &Doc, n: &Node, dir: &Path) -> Result<Component, Error> {
     }
     let mut connectors = Vec::new();
     let mut parameters = Vec::new();
+    let mut seen_connectors = false;
     for (ns, local, c) in ssp_children(n) {
         match (ns, local) {
-            (Ns::Ssd, "Connectors") => connectors.extend(read_connectors(d, c)?),
+            (Ns::Ssd, "Connectors") if seen_connectors => {
+                return Err(d.err(
+                    c,
+                    format_args!("component '{name}' has a second <ssd:Connectors>"),
+                ))
+            }
+            (Ns::Ssd, "Connectors") => {
+                seen_connectors = true;
+                connectors.extend(read_connectors(d, c)?)
+            }
             (Ns::Ssd, "ParameterBindings") => {
                 for (p, _) in read_bindings(d, c, dir)? {
                     set_parameter(&mut parameters, p);
@@ -1350,7 +1349,7 @@ fn read_bindings<'n>(
                 return Err(d.err(b, "sourceBase=\"component\" is not supported"));
             }
             let path = dir.join(source);
-            let text = std::fs::read_to_string(&path).map_err(|e| {
+            let text = crate::archive::read_text(&path).map_err(|e| {
                 d.err(
                     b,
                     format_args!(
@@ -1699,8 +1698,8 @@ mod tests {
     #[test]
     fn round_trip_archive() {
         let t = temp();
-        let fmu_a = t.0.join("a.fmu");
-        let fmu_b = t.0.join("b.fmu");
+        let fmu_a = t.path().join("a.fmu");
+        let fmu_b = t.path().join("b.fmu");
         std::fs::write(&fmu_a, b"grid bytes").unwrap();
         std::fs::write(&fmu_b, b"der bytes").unwrap();
         let s = sample();
@@ -1709,7 +1708,7 @@ mod tests {
             ("resources/der.fmu".to_string(), fmu_b),
             ("resources/op \"x\".fmu".to_string(), fmu_a),
         ];
-        let out = t.0.join("demo.ssp");
+        let out = t.path().join("demo.ssp");
         s.write_ssp(&fmus, &out).unwrap();
         let dir;
         {
@@ -1735,7 +1734,7 @@ mod tests {
         let e = bad.write_ssp(&fmus, &out).unwrap_err();
         assert!(e.0.contains("endConnector 'nope'"), "{e}");
         let e = s
-            .write_ssp(&[("../x.fmu".to_string(), t.0.join("a.fmu"))], &out)
+            .write_ssp(&[("../x.fmu".to_string(), t.path().join("a.fmu"))], &out)
             .unwrap_err();
         assert!(e.0.contains("'../x.fmu' is not a valid path"), "{e}");
     }
@@ -1757,7 +1756,7 @@ mod tests {
     #[test]
     fn not_an_ssp() {
         let t = temp();
-        let junk = t.0.join("junk.ssp");
+        let junk = t.path().join("junk.ssp");
         std::fs::write(&junk, "hello").unwrap();
         let e = read(&junk).unwrap_err().0;
         assert!(
@@ -1765,7 +1764,7 @@ mod tests {
             "{e}"
         );
 
-        let empty = t.0.join("empty.ssp");
+        let empty = t.path().join("empty.ssp");
         let mut zip = zip::ZipWriter::new(std::fs::File::create(&empty).unwrap());
         zip.start_file("other.txt", zip::write::SimpleFileOptions::default())
             .unwrap();
@@ -1773,9 +1772,9 @@ mod tests {
         let e = read(&empty).unwrap_err().0;
         assert!(e.contains("no SystemStructure.ssd"), "{e}");
 
-        let e = read(&t.0).unwrap_err().0;
+        let e = read(t.path()).unwrap_err().0;
         assert!(e.contains("not an SSP directory"), "{e}");
-        let e = read(&t.0.join("missing.ssp")).unwrap_err().0;
+        let e = read(&t.path().join("missing.ssp")).unwrap_err().0;
         assert!(
             e.contains("missing.ssp") && e.contains("cannot open"),
             "{e}"
@@ -2190,14 +2189,14 @@ mod tests {
     #[test]
     fn ssv_binding() {
         let t = temp();
-        std::fs::create_dir(t.0.join("resources")).unwrap();
+        std::fs::create_dir(t.path().join("resources")).unwrap();
         let ssv = r#"<ssv:ParameterSet xmlns:ssv="http://ssp-standard.org/SSP1/SystemStructureParameterValues" version="1.0" name="p">
   <ssv:Parameters>
     <ssv:Parameter name="time"><ssv:Real value="0.25" unit="s"/></ssv:Parameter>
     <ssv:Parameter name="enabled"><ssv:Boolean value="false"/></ssv:Parameter>
   </ssv:Parameters>
 </ssv:ParameterSet>"#;
-        std::fs::write(t.0.join("resources/grid.ssv"), ssv).unwrap();
+        std::fs::write(t.path().join("resources/grid.ssv"), ssv).unwrap();
         let mut s = sample();
         s.components[0].parameters.clear();
         let xml = s.to_ssd().replacen(
@@ -2206,8 +2205,8 @@ mod tests {
             1,
         );
         // The XSD order (Connectors before ParameterBindings) is not enforced by the reader.
-        std::fs::write(t.0.join(SSD_FILE), &xml).unwrap();
-        let p = read(&t.0).unwrap();
+        std::fs::write(t.path().join(SSD_FILE), &xml).unwrap();
+        let p = read(t.path()).unwrap();
         assert_eq!(
             p.system.components[0].parameters,
             vec![
@@ -2221,16 +2220,20 @@ mod tests {
                 },
             ]
         );
-        assert_eq!(p.dir, t.0);
+        assert_eq!(p.dir, t.path());
 
-        std::fs::write(t.0.join("resources/grid.ssv"), ssv.replace("0.25", "x")).unwrap();
-        let e = read(&t.0).unwrap_err().0;
+        std::fs::write(
+            t.path().join("resources/grid.ssv"),
+            ssv.replace("0.25", "x"),
+        )
+        .unwrap();
+        let e = read(t.path()).unwrap_err().0;
         assert!(
             e.contains("resources/grid.ssv: <ssv:Real>: parameter 'time'"),
             "{e}"
         );
-        std::fs::remove_file(t.0.join("resources/grid.ssv")).unwrap();
-        let e = read(&t.0).unwrap_err().0;
+        std::fs::remove_file(t.path().join("resources/grid.ssv")).unwrap();
+        let e = read(t.path()).unwrap_err().0;
         assert!(
             e.contains("<ssd:ParameterBinding>")
                 && e.contains("cannot read parameter file 'resources/grid.ssv'"),

@@ -21,12 +21,29 @@ pub struct TDes {
 impl TDes {
     /// Case-study form: `T_pf = 1/(H s + D)`, `T_qv = D_q`, roll-off `τ_q`.
     ///
-    /// Errors: non-finite values; `H s + D` not Hurwitz (`H < 0`, `D ≤ 0`, …) →
+    /// Errors: non-finite or subnormal values; `H s + D` not Hurwitz (`H < 0`, `D ≤ 0`, …) →
     /// [`DvppError::Unstable`]; `D_q ≤ 0` → [`DvppError::InvalidParameter`]; `τ_q ≤ 0`.
     pub fn inertia_droop(h: f64, d: f64, dq: f64, tau_q: f64) -> Result<Self> {
         check_finite("T_des H", h)?;
         check_finite("T_des D", d)?;
         check_finite("T_des D_q", dq)?;
+        // Zero or normal: a subnormal coefficient overflows when the channels are realized.
+        for (what, x) in [
+            ("T_des H", h),
+            ("T_des D", d),
+            ("T_des D_q", dq),
+            ("T_des tau_q", tau_q),
+        ] {
+            if x != 0.0 && !x.is_normal() {
+                return Err(DvppError::InvalidParameter {
+                    what: what.into(),
+                    reason: format!(
+                        "{x:e} is subnormal (nonzero but below {:e})",
+                        f64::MIN_POSITIVE
+                    ),
+                });
+            }
+        }
         if dq <= 0.0 {
             return Err(DvppError::InvalidParameter {
                 what: "T_des D_q".into(),

@@ -150,6 +150,20 @@ impl TransferFunction {
         let num = poly_trim(num);
         let den = poly_trim(den);
         let (dn, dd) = (poly_degree(&num), poly_degree(&den));
+        // The realizations divide by the leading denominator coefficient: a (subnormal) leading
+        // coefficient that overflows them is refused here rather than met there.
+        let lead = den[dd];
+        if num
+            .iter()
+            .chain(den.iter())
+            .any(|c| !(c / lead).is_finite())
+        {
+            return Err(DvppError::NonFinite {
+                what: format!(
+                    "transfer function coefficient over the leading denominator coefficient {lead:e}"
+                ),
+            });
+        }
         if num.iter().any(|c| *c != 0.0) && dn > dd {
             return Err(DvppError::Improper {
                 what: "transfer function".into(),
@@ -399,6 +413,21 @@ impl TransferFunction {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn subnormal_leading_coefficients_are_refused_not_realized() {
+        // 1/(4.9e-324 s + 33.33) and 1/4.9e-324 would overflow the realizations.
+        assert!(TransferFunction::new(vec![1.0], vec![33.33, 4.9e-324]).is_err());
+        assert!(TransferFunction::new(vec![1.0], vec![4.9e-324]).is_err());
+        let t = TransferFunction::new(vec![1.0], vec![33.33, 5.55]).unwrap();
+        assert_eq!(t.to_state_space().a().nrows(), 1);
+        let d = 4.9e-324;
+        let e = crate::TDes::inertia_droop(d, 33.33, 0.01, 0.01).unwrap_err();
+        assert!(e.to_string().contains("T_des H"), "{e}");
+        let e = crate::TDes::inertia_droop(5.55, 33.33, d, 0.01).unwrap_err();
+        assert!(e.to_string().contains("T_des D_q"), "{e}");
+        assert!(crate::TDes::inertia_droop(0.0, 33.33, 0.01, 0.01).is_ok());
+    }
 
     #[test]
     fn routh_examples() {

@@ -75,7 +75,21 @@ pub fn guarded<M: Model>(
         }
         Err(payload) => {
             inst.core.phase = Phase::Fatal;
-            let text = panic_text(payload.as_ref());
+            let mut text = panic_text(payload.as_ref());
+            // Which parameters the model ran with: the likely cause, named for the user.
+            if matches!(
+                call,
+                Call::EnterInitializationMode | Call::ExitInitializationMode | Call::DoStep
+            ) {
+                let changed = catch_unwind(AssertUnwindSafe(|| inst.changed_parameters(6)))
+                    .unwrap_or_default();
+                if !changed.is_empty() {
+                    text.push_str(&format!(
+                        " (parameters set away from their start values: {})",
+                        changed.join(", ")
+                    ));
+                }
+            }
             // The logger itself must not unwind into the host either.
             let _ = catch_unwind(AssertUnwindSafe(|| {
                 inst.logger.log(

@@ -297,9 +297,19 @@ impl<M: Model> Instance<M> {
                     m.name
                 ));
             }
+            // No physical parameter is closer to zero than the smallest normal f64; dividing by
+            // one overflows (a time constant, an inertia), so they are refused here, by name.
+            if m.causality == Causality::Parameter && x != 0.0 && !x.is_normal() {
+                return Err(format!(
+                    "value {x:e} for parameter '{}' is subnormal (nonzero but below {:e} in magnitude); rejected",
+                    m.name,
+                    f64::MIN_POSITIVE
+                ));
+            }
             if m.min.is_some_and(|lo| x < lo) || m.max.is_some_and(|hi| x > hi) {
                 return Err(format!(
-                    "value {x} for '{}' is outside its range [{}, {}]; rejected",
+                    "value {} for '{}' is outside its range [{}, {}]; rejected",
+                    shown(x),
                     m.name,
                     m.min.unwrap_or(f64::NEG_INFINITY),
                     m.max.unwrap_or(f64::INFINITY)
@@ -307,6 +317,39 @@ impl<M: Model> Instance<M> {
             }
         }
         Ok(())
+    }
+
+    /// The parameters whose values differ from their start values, as `'name' = value` (at most
+    /// `limit`, then `…`): what a contained panic in initialization or a step most likely comes
+    /// from.
+    pub fn changed_parameters(&self, limit: usize) -> Vec<String> {
+        let (now, start) = (&self.core.store, &self.fresh.store);
+        let mut out = Vec::new();
+        for (t, metas) in self.meta.iter().enumerate() {
+            for (i, m) in metas.iter().enumerate() {
+                if m.causality != Causality::Parameter {
+                    continue;
+                }
+                let changed =
+                    match t {
+                        0 => (now.reals[i] != start.reals[i]).then(|| shown(now.reals[i])),
+                        1 => (now.integers[i] != start.integers[i])
+                            .then(|| now.integers[i].to_string()),
+                        2 => (now.booleans[i] != start.booleans[i])
+                            .then(|| now.booleans[i].to_string()),
+                        _ => (now.strings[i] != start.strings[i])
+                            .then(|| format!("{:?}", now.strings[i])),
+                    };
+                if let Some(v) = changed {
+                    if out.len() == limit {
+                        out.push("…".into());
+                        return out;
+                    }
+                    out.push(format!("'{}' = {v}", m.name));
+                }
+            }
+        }
+        out
     }
 
     /// Store checked values.
@@ -464,4 +507,13 @@ fn meta_of(vars: &Variables) -> [Vec<Meta>; 4] {
 pub struct Snapshot<M> {
     pub(crate) tag: u64,
     pub(crate) core: Core<M>,
+}
+
+/// A value as log lines show it: plain, or in exponent form when very large or small.
+fn shown(x: f64) -> String {
+    if x == 0.0 || (1e-6..1e15).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
 }

@@ -276,8 +276,16 @@ fn err(name: &str, message: impl std::fmt::Display) -> ModelError {
 
 fn positive(s: &Store, r: Real, name: &str) -> Result<f64, ModelError> {
     let x = s[r];
-    if x > 0.0 && x.is_finite() {
+    if x > 0.0 && x.is_finite() && x.is_normal() {
         Ok(x)
+    } else if x > 0.0 && x.is_finite() {
+        Err(err(
+            name,
+            format!(
+                "= {x:e}: must be > 0 and not subnormal (at least {:e})",
+                f64::MIN_POSITIVE
+            ),
+        ))
     } else {
         Err(err(name, format!("= {x}: must be > 0")))
     }
@@ -524,6 +532,15 @@ impl Der {
             return Err(err(
                 "Tdes.H",
                 format!("= {h}: T_pf = 1/(H s + D) is unstable"),
+            ));
+        }
+        if h != 0.0 && !h.is_normal() {
+            return Err(err(
+                "Tdes.H",
+                format!(
+                    "= {h:e}: must be 0 or at least {:e} (a subnormal inertia overflows T_pf = 1/(H s + D))",
+                    f64::MIN_POSITIVE
+                ),
             ));
         }
         if d <= 0.0 {

@@ -411,3 +411,21 @@ fn gains_limits_and_set_points_are_tunable_between_steps_and_structure_is_not() 
         assert_eq!(retuned.try_set(name, x), Status::Error, "{name}");
     }
 }
+
+#[test]
+fn subnormal_t_des_parameters_are_refused_by_name() {
+    for name in ["Tdes.H", "Tdes.D", "Tdes.Dq", "Tdes.tau_q"] {
+        let mut h = Harness::<Der>::new();
+        assert_eq!(h.try_set(name, 4.9e-324), Status::Error, "{name}");
+        assert!(
+            h.logged(
+                Status::Error,
+                &format!("for parameter '{name}' is subnormal")
+            ),
+            "{:#?}",
+            h.log()
+        );
+        // Nothing was contained: the instance is in the error state, not the fatal one.
+        assert_eq!(h.phase(), Phase::Error, "{name}");
+    }
+}

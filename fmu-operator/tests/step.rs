@@ -470,3 +470,14 @@ fn a_rotation_without_pocs_and_a_bad_ratio_are_refused() {
         }
     }
 }
+
+#[test]
+fn a_subnormal_inertia_is_refused_by_name() {
+    let mut h = Harness::<Operator>::new();
+    assert_eq!(h.try_set("Tdes.H", 4.9e-324), Status::Error);
+    assert!(
+        h.logged(Status::Error, "for parameter 'Tdes.H' is subnormal"),
+        "{:#?}",
+        h.log()
+    );
+}

@@ -252,8 +252,10 @@ fn instantiate_refuses_wrong_guid_missing_resources_and_model_exchange() {
 fn resource_locations_are_decoded_in_every_file_uri_form() {
     let fmu = load("dvpp_der");
     let guid = fmu.description.guid.clone();
-    let spaced = std::env::temp_dir().join(format!("dvpp res {}", std::process::id()));
-    std::fs::create_dir_all(&spaced).unwrap();
+    // A space in the path, inside a fresh private directory.
+    let scratch = dvpp_cosim::tmp::TempDir::new("res").unwrap();
+    let spaced = scratch.path().join("dvpp res");
+    std::fs::create_dir(&spaced).unwrap();
     std::fs::copy(
         fmu.dir.join("resources/config.toml"),
         spaced.join("config.toml"),
@@ -270,7 +272,7 @@ fn resource_locations_are_decoded_in_every_file_uri_form() {
         let i = fmu.instantiate_with("uri", &guid, &uri, 1);
         assert!(i.is_ok(), "{uri}: {:?}", i.err());
     }
-    std::fs::remove_dir_all(&spaced).unwrap();
+    drop(scratch);
 }
 
 /// Drive the DER with a power step so its state evolves.
@@ -490,8 +492,7 @@ fn serialized_state_restores_in_another_process() {
         .flatten()
         .flat_map(|x| x.to_le_bytes())
         .collect();
-    let dir = std::env::temp_dir().join(format!("dvpp-state-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = dvpp_cosim::tmp::create_dir("state").unwrap();
     let (state_file, out_file) = (dir.join("state.bin"), dir.join("outputs.bin"));
     std::fs::write(&state_file, &bytes).unwrap();
     let status = std::process::Command::new(std::env::current_exe().unwrap())

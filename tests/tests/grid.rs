@@ -213,9 +213,8 @@ fn load_step_28_mw_at_bus_5_of_ieee9() {
 /// A copy of the default grid's resources with `config.toml` pointing at `case_file` holding
 /// `text`; returns the directory.
 fn resources_with_case(fmu: &Fmu, tag: &str, text: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("dvpp-grid-case-{}-{tag}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+    // A fresh private directory (the caller removes it).
+    let dir = dvpp_cosim::tmp::create_dir(&format!("grid-case-{tag}")).unwrap();
     for entry in std::fs::read_dir(fmu.dir.join("resources")).unwrap() {
         let entry = entry.unwrap();
         std::fs::copy(entry.path(), dir.join(entry.file_name())).unwrap();

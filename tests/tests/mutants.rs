@@ -207,6 +207,36 @@ fn malformed_systems_are_refused_or_run_unchanged() {
             mutants.push(("Real binding", m, true));
         }
     }
+    // Subnormal values an FMU cannot realize (1/H overflows): refused by name, not a panic.
+    for v in ["4.9e-324", "-2e-310", "1e-308"] {
+        if let Some(m) = with_binding(&ssd, "Tdes.H", &format!("<ssv:Real value=\"{v}\"/>")) {
+            mutants.push(("subnormal parameter", m, true));
+        }
+    }
+    // A connection written through a DTD entity (the reader never saw it) and repeated
+    // connector blocks (duplicate CSV columns).
+    mutants.push((
+        "DTD entity",
+        ssd.replacen(
+            "?>",
+            &format!(
+                "?>\n<!DOCTYPE ssd:SystemStructureDescription [<!ENTITY c '{}'>]>",
+                connection.replace('"', "&quot;")
+            ),
+            1,
+        )
+        .replacen(&connection, "&c;", 1),
+        true,
+    ));
+    let connectors = {
+        let at = ssd.find("<ssd:Connectors>").expect("a connectors block");
+        ssd[at..at + ssd[at..].find("</ssd:Connectors>").expect("an end tag") + 17].to_owned()
+    };
+    mutants.push((
+        "repeated connectors",
+        ssd.replacen(&connectors, &connectors.repeat(2), 1),
+        true,
+    ));
     mutants.push((
         "Real binding",
         ssd.replacen(

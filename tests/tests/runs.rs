@@ -1,6 +1,7 @@
-//! How a run of the `cosim` binary ends: interrupted by SIGINT or SIGTERM, or stopped by an FMU
-//! error, it keeps every complete row in `<out>.partial`, writes no `<out>`, leaves no unpacked
-//! FMU behind and says where it stopped.
+//! How a run of the `cosim` binary ends: interrupted by SIGINT, SIGTERM or SIGHUP (once or
+//! repeatedly), stopped by an FMU error or by a file size limit, it keeps every complete row (and
+//! no part of one) in `<out>.partial`, writes no `<out>`, leaves no unpacked FMU behind and says
+//! where it stopped. An `--out` that is a directory or the input is refused before the run.
 
 use dvpp_e2e::{cosim, dist, foreign, scenario};
 use std::path::{Path, PathBuf};
@@ -43,6 +44,16 @@ fn rows(path: &Path) -> (Vec<String>, Vec<Vec<f64>>) {
 /// Run `cosim` on `system` with a private TMPDIR, sending `signal` once `<out>.partial` holds
 /// at least `after_rows` rows (`None`: let it run).
 fn run(system: &Path, args: &[&str], dir: &Path, signal: Option<(&str, usize)>) -> Output {
+    run_signals(system, args, dir, signal.map(|(s, n)| (vec![s], n)))
+}
+
+/// [`run`] sending the first of `signals`, then the last one every 50 µs until the run ends.
+fn run_signals(
+    system: &Path,
+    args: &[&str],
+    dir: &Path,
+    signal: Option<(Vec<&str>, usize)>,
+) -> Output {
     let tmp = dir.join("tmp");
     std::fs::create_dir_all(&tmp).expect("create TMPDIR");
     let out = dir.join("out.csv");
@@ -56,7 +67,7 @@ fn run(system: &Path, args: &[&str], dir: &Path, signal: Option<(&str, usize)>) 
         .stderr(Stdio::piped())
         .spawn()
         .expect("start cosim");
-    if let Some((name, after_rows)) = signal {
+    if let Some((names, after_rows)) = signal {
         let partial = dir.join("out.csv.partial");
         let started = Instant::now();
         loop {
@@ -76,11 +87,27 @@ fn run(system: &Path, args: &[&str], dir: &Path, signal: Option<(&str, usize)>) 
             );
             std::thread::sleep(Duration::from_millis(20));
         }
-        let status = Command::new("kill")
-            .args(["-s", name, &child.id().to_string()])
-            .status()
-            .expect("run kill");
-        assert!(status.success());
+        let number = |name: &str| match name {
+            "INT" => libc::SIGINT,
+            "TERM" => libc::SIGTERM,
+            "HUP" => libc::SIGHUP,
+            other => panic!("no signal {other}"),
+        };
+        let pid = child.id() as i32;
+        // SAFETY: kill(2) on our child's pid, not yet waited for (a zombie at worst, never reused).
+        let send = |name: &str| assert_eq!(unsafe { libc::kill(pid, number(name)) }, 0);
+        send(names[0]);
+        // Further signals: the last one over and over while the run stops (the CSV synced, the
+        // unpacked FMUs removed), until it has ended.
+        if let Some(last) = names.get(1..).and_then(<[&str]>::last) {
+            for _ in 0..20_000 {
+                std::thread::sleep(Duration::from_micros(50));
+                send(last);
+                if child.try_wait().expect("poll").is_some() {
+                    break;
+                }
+            }
+        }
     }
     let output = child.wait_with_output().expect("wait for cosim");
     let left: Vec<_> = std::fs::read_dir(&tmp)
@@ -104,9 +131,19 @@ fn stopped_at(stderr: &str, marker: &str) -> f64 {
 }
 
 fn interrupted_by(signal: &str, number: i32) {
-    let dir = fresh(&format!("interrupt-{signal}"));
+    interrupted_by_all(&[signal], number);
+}
+
+/// Interrupted by `signals` sent back to back; the first one (`number`) is reported.
+fn interrupted_by_all(signals: &[&str], number: i32) {
+    let dir = fresh(&format!("interrupt-{}", signals.join("-")));
     let ssp = scenario("case1_load");
-    let out = run(&ssp, &["--stop", "600"], &dir, Some((signal, 2000)));
+    let out = run_signals(
+        &ssp,
+        &["--stop", "600"],
+        &dir,
+        Some((signals.to_vec(), 2000)),
+    );
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(128 + number), "{stderr}");
     assert!(
@@ -137,6 +174,90 @@ fn interrupted_by(signal: &str, number: i32) {
 #[test]
 fn sigint_stops_at_a_communication_point_and_keeps_complete_rows() {
     interrupted_by("INT", 2);
+}
+
+#[test]
+fn sighup_stops_like_sigterm_and_cleans_up() {
+    interrupted_by("HUP", 1);
+}
+
+#[test]
+fn a_second_sigint_while_stopping_still_cleans_up() {
+    interrupted_by_all(&["INT", "INT"], 2);
+}
+
+#[test]
+fn a_file_size_limit_is_an_error_naming_the_file_and_keeps_whole_rows() {
+    let dir = fresh("file-size-limit");
+    let tmp = dir.join("tmp");
+    std::fs::create_dir_all(&tmp).expect("create TMPDIR");
+    let out = dir.join("out.csv");
+    // 10000 blocks of 512 or 1024 bytes: more than any unpacked file, a few seconds of rows.
+    let output = Command::new("sh")
+        .arg("-c")
+        .arg("ulimit -f 10000 && exec \"$@\"")
+        .arg("sh")
+        .arg(cosim())
+        .arg(scenario("case1_load"))
+        .args(["--stop", "60", "--out"])
+        .arg(&out)
+        .env("TMPDIR", &tmp)
+        .output()
+        .expect("run cosim");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(
+        output.status.code(),
+        Some(1),
+        "{:?}: {stderr}",
+        output.status
+    );
+    let partial = dir.join("out.csv.partial");
+    assert!(
+        stderr.contains(&format!("{}: File too large", partial.display())),
+        "{stderr}"
+    );
+    assert!(!out.exists());
+    let (_, rows) = rows(&partial);
+    assert!(!rows.is_empty());
+    let left: Vec<_> = std::fs::read_dir(&tmp).expect("TMPDIR").collect();
+    assert!(left.is_empty(), "temporary files left behind: {left:?}");
+}
+
+#[test]
+fn an_out_that_is_the_input_or_a_directory_is_refused_before_the_run() {
+    let dir = fresh("out-checks");
+    let ssp = dir.join("system.ssp");
+    std::fs::copy(scenario("case1_load"), &ssp).expect("copy the scenario");
+    let original = std::fs::read(&ssp).expect("read the input");
+    let linked = dir.join("linked.csv");
+    std::fs::hard_link(&ssp, &linked).expect("a hard link");
+    let started = Instant::now();
+    for out in [ssp.clone(), dir.join(".").join("system.ssp"), linked] {
+        let output = Command::new(cosim())
+            .arg(&ssp)
+            .args(["--stop", "0.05", "--out"])
+            .arg(&out)
+            .output()
+            .expect("run cosim");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains("is the input"), "{stderr}");
+        assert_eq!(std::fs::read(&ssp).expect("read the input"), original);
+    }
+    let output = Command::new(cosim())
+        .arg(&ssp)
+        .args(["--stop", "60", "--out"])
+        .arg(&dir)
+        .output()
+        .expect("run cosim");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert_eq!(output.status.code(), Some(1), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("is a directory"), "{stderr}");
+    // Refused before loading anything: a 60 s run takes far longer than this.
+    assert!(started.elapsed() < Duration::from_secs(20));
+    assert!(!PathBuf::from(format!("{}.partial", dir.display())).exists());
 }
 
 #[test]

@@ -158,10 +158,10 @@ fn measure_system(spec: &str) -> Result<Vec<(String, f64, u64)>, String> {
         };
         rows.push((format!("{label} ({scheme:?}{on})"), best.0, best.1));
     }
-    let csv = std::env::temp_dir().join(format!("dvpp-bench-{}.csv", std::process::id()));
+    let scratch = dvpp_cosim::tmp::TempDir::new("bench").map_err(|e| e.to_string())?;
+    let csv = scratch.path().join("bench.csv");
     let mut writer = CsvWriter::new(&csv);
     let (ns, steps) = macro_step(path, stop, Scheme::Jacobi, 1, &mut [&mut writer])?;
-    let _ = std::fs::remove_file(&csv);
     rows.push((format!("{label} (Jacobi, streamed CSV)"), ns, steps));
     Ok(rows)
 }

@@ -27,10 +27,13 @@ attempt moves --relaxation (default 1) of the way to the values obtained; at mos
 one per core; default 1) with results identical bit for bit; it pays where cores are idle
 (docs/scaling.md). Components with identical binaries share one loaded library, each with its
 own resources. Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run
-that fails or is stopped by SIGINT/SIGTERM (at the next communication point) leaves every
-complete row in FILE.csv.partial and exits non-zero (1 on an error, 128 + the signal's number
-when interrupted); a device or named pipe (/dev/null) is written in place. --no-csv records nothing (benchmarks). --plot draws the --signals (default:
-the first six columns) against time as an SVG figure; it keeps the results in memory.
+that fails or is stopped by SIGINT/SIGTERM/SIGHUP (at the next communication point; further
+signals are ignored while it stops) leaves every complete row, and never part of one, in
+FILE.csv.partial, removes its unpacked files and exits non-zero (1 on an error, such as a
+full disk or a file size limit, 128 + the signal's number when interrupted); a device or named
+pipe (/dev/null) is written in place; FILE.csv may not be a directory or the input. --no-csv
+records nothing (benchmarks). --plot draws the --signals (default: the first six columns)
+against time as an SVG figure; it keeps the results in memory.
 
        cosim federate SYSTEM.ssp --component NAME[,NAME...] --broker HOST[:PORT] [--name FED]
              [--out FILE.csv] [--stop T] [--step H] [--helics-lib PATH] [--core tcpss|zmq|tcp|...]
@@ -144,6 +147,41 @@ fn plot(table: &Table, signals: &[String], title: &str, path: &Path) -> Result<(
         .map_err(|e| format!("{}: {e}", path.display()))
 }
 
+/// Whether `a` and `b` are the same file (device and inode), both existing.
+fn same_file(a: &Path, b: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    match (std::fs::metadata(a), std::fs::metadata(b)) {
+        (Ok(a), Ok(b)) => a.dev() == b.dev() && a.ino() == b.ino(),
+        _ => false,
+    }
+}
+
+/// Refuse, before the run, a CSV path the run could not write or must not: a directory, or the
+/// input itself (a complete run renames its rows over `out`).
+fn check_out(out: &Path, system: &Path) -> Result<(), String> {
+    if out.is_dir() {
+        return Err(format!(
+            "--out {}: is a directory; name a file",
+            out.display()
+        ));
+    }
+    let mut inputs = vec![system.to_path_buf()];
+    if system.is_dir() {
+        inputs.push(system.join(dvpp_cosim::ssp::SSD_FILE));
+    }
+    for written in [out.to_path_buf(), partial_path(out)] {
+        if let Some(input) = inputs.iter().find(|i| same_file(&written, i)) {
+            return Err(format!(
+                "--out {}: {} is the input {}; it would be overwritten",
+                out.display(),
+                written.display(),
+                input.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// The name results are filed under: the FMU's file stem or the system's.
 fn stem(path: &Path) -> String {
     path.file_stem()
@@ -159,6 +197,8 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
+    // A file size limit (`ulimit -f`) makes writes fail with EFBIG, reported with the path.
+    interrupt::ignore_file_size_limit();
     // A federate blocks in HELICS calls: SIGINT/SIGTERM keep their default (end the process).
     // The launcher stops its broker and federates on them.
     match std::env::args().nth(1).as_deref() {
@@ -183,6 +223,12 @@ fn main() -> ExitCode {
             .clone()
             .unwrap_or_else(|| PathBuf::from(format!("{name}.csv")))
     });
+    if let Some(out) = &out {
+        if let Err(e) = check_out(out, &args.system) {
+            eprintln!("cosim: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
     let mut csv = out.as_deref().map(CsvWriter::new);
     let mut progress = Progress::default();
     let mut recorder = args.plot.as_ref().map(|_| Recorder::default());

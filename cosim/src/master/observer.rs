@@ -3,7 +3,7 @@
 
 use super::Error;
 use crate::table::{write_header, write_row, Table};
-use std::io::{BufWriter, IsTerminal};
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -62,22 +62,34 @@ impl Observer for Recorder {
     }
 }
 
-/// The CSV file of a run, written as it goes through a buffer.
+/// The CSV file of a run, written as it goes through a buffer of whole rows.
 ///
 /// Rows go to `<path>.partial` and the file is renamed to `path` only when the run completes:
 /// a file named `path` is always a complete run, and a `.partial` file (left by an interrupted
-/// or failed run) holds every complete row up to where the run stopped; a run that stops before
-/// its first row leaves no file. An existing file at `path` is replaced only by a complete run.
-/// A `path` that exists and is not a regular file or directory (`/dev/null`, a named pipe) is
-/// written directly: renaming a file over it would replace the device.
+/// or failed run) holds every complete row up to where the run stopped, never part of a row: rows
+/// are written whole, and a write that fails part-way (a full disk, a file size limit) is cut
+/// back to the last whole row. A run that stops before its first row leaves no file. An existing
+/// file at `path` is replaced only by a complete run. A `path` that exists and is not a regular
+/// file or directory (`/dev/null`, a named pipe) is written directly: renaming a file over it
+/// would replace the device.
 pub struct CsvWriter {
     path: PathBuf,
     partial: PathBuf,
     /// Written in place (a device or pipe), no `.partial`.
     direct: bool,
-    out: Option<BufWriter<std::fs::File>>,
+    file: Option<std::fs::File>,
+    /// Whole rows (and the header) not yet written to the file.
+    buf: Vec<u8>,
+    /// Rows in `buf`.
+    pending: u64,
+    /// Bytes of the file that hold the header and whole rows.
+    whole: u64,
+    /// Rows in the file.
     rows: u64,
 }
+
+/// How many bytes of whole rows [`CsvWriter`] gathers before writing them.
+const CSV_BUFFER: usize = 1 << 16;
 
 impl CsvWriter {
     pub fn new(path: &Path) -> CsvWriter {
@@ -90,18 +102,66 @@ impl CsvWriter {
                 partial_path(path)
             },
             direct,
-            out: None,
+            file: None,
+            buf: Vec::with_capacity(CSV_BUFFER + 4096),
+            pending: 0,
+            whole: 0,
             rows: 0,
         }
     }
 
-    /// Rows written so far.
+    /// Rows written so far (complete rows, once the run has finished).
     pub fn rows(&self) -> u64 {
-        self.rows
+        self.rows + self.pending
     }
 
     fn io(&self, e: std::io::Error) -> Error {
         Error(format!("{}: {e}", self.partial.display()))
+    }
+
+    /// Write the buffered rows. On an error the file keeps only whole rows (cut back to the last
+    /// complete one) and is closed: the rows not written are dropped.
+    fn write_out(&mut self) -> Result<(), Error> {
+        let Some(file) = self.file.as_mut() else {
+            self.buf.clear();
+            self.pending = 0;
+            return Ok(());
+        };
+        let mut done = 0;
+        let failure = loop {
+            if done == self.buf.len() {
+                break None;
+            }
+            match std::io::Write::write(file, &self.buf[done..]) {
+                Ok(0) => break Some(std::io::Error::from(std::io::ErrorKind::WriteZero)),
+                Ok(n) => done += n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => break Some(e),
+            }
+        };
+        let Some(e) = failure else {
+            self.whole += done as u64;
+            self.rows += self.pending;
+            self.buf.clear();
+            self.pending = 0;
+            return Ok(());
+        };
+        // Keep the whole rows that made it; cut the torn one.
+        let kept = self.buf[..done]
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |p| p + 1);
+        let rows = self.buf[..kept].iter().filter(|&&b| b == b'\n').count() as u64;
+        let header = u64::from(self.whole == 0 && kept > 0);
+        if !self.direct {
+            let _ = file.set_len(self.whole + kept as u64);
+        }
+        self.whole += kept as u64;
+        self.rows += rows - header;
+        self.buf.clear();
+        self.pending = 0;
+        self.file = None;
+        Err(self.io(e))
     }
 }
 
@@ -120,28 +180,33 @@ impl Observer for CsvWriter {
             std::fs::File::create(&self.partial)
         }
         .map_err(|e| self.io(e))?;
-        let mut out = BufWriter::with_capacity(1 << 16, file);
-        write_header(&mut out, run.columns).map_err(|e| self.io(e))?;
-        self.out = Some(out);
+        self.file = Some(file);
+        write_header(&mut self.buf, run.columns).map_err(|e| self.io(e))?;
         Ok(())
     }
 
     fn sample(&mut self, row: &[f64]) -> Result<(), Error> {
-        if let Some(out) = self.out.as_mut() {
-            if let Err(e) = write_row(out, row) {
-                return Err(self.io(e));
-            }
-            self.rows += 1;
+        if self.file.is_none() {
+            return Ok(());
+        }
+        write_row(&mut self.buf, row).map_err(|e| self.io(e))?;
+        self.pending += 1;
+        if self.buf.len() >= CSV_BUFFER {
+            self.write_out()?;
         }
         Ok(())
     }
 
     fn finish(&mut self, end: &End) -> Result<(), Error> {
-        let Some(out) = self.out.take() else {
-            return Ok(());
+        // Whole rows only: the buffer holds nothing else.
+        let written = self.write_out();
+        let Some(file) = self.file.take() else {
+            if self.rows == 0 && !self.direct {
+                // A failed write left no row: no file either.
+                let _ = std::fs::remove_file(&self.partial);
+            }
+            return written;
         };
-        // Flushing complete rows only: a row is written whole into the buffer before the next.
-        let file = out.into_inner().map_err(|e| self.io(e.into_error()))?;
         if self.direct {
             return Ok(());
         }
@@ -232,9 +297,8 @@ mod tests {
 
     #[test]
     fn a_named_pipe_is_written_in_place_and_stays_a_pipe() {
-        let dir = std::env::temp_dir().join(format!("dvpp-csv-fifo-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
-        let fifo = dir.join("out.csv");
+        let dir = crate::tmp::TempDir::new("csv-fifo").unwrap();
+        let fifo = dir.path().join("out.csv");
         let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
         // SAFETY: a valid NUL-terminated path.
         assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
@@ -266,6 +330,5 @@ mod tests {
         let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
         assert!(kind.is_fifo(), "the pipe was replaced: {kind:?}");
         assert!(!partial_path(&fifo).exists());
-        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

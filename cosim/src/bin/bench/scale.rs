@@ -222,15 +222,14 @@ pub fn measure(spec: &str) -> Result<(), String> {
         .parse()
         .map_err(|_| format!("scale: bad UNIT_STEPS '{unit_steps}'"))?;
     // KEEP_DIR: the systems stay there (`nN/`), for other masters to run the same ones.
-    let root = keep.map_or_else(
-        || std::env::temp_dir().join(format!("dvpp-bench-scale-{}", std::process::id())),
-        Path::to_path_buf,
-    );
-    let result = measure_in(&root, Path::new(fmu), &ns, unit_steps);
-    if keep.is_none() {
-        let _ = std::fs::remove_dir_all(&root);
+    match keep {
+        Some(root) => measure_in(root, Path::new(fmu), &ns, unit_steps),
+        None => {
+            let scratch =
+                dvpp_cosim::tmp::TempDir::new("bench-scale").map_err(|e| e.to_string())?;
+            measure_in(scratch.path(), Path::new(fmu), &ns, unit_steps)
+        }
     }
-    result
 }
 
 /// The median of `xs` (not empty).

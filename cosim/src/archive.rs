@@ -1,0 +1,189 @@
+//! Unpacking FMU and SSP archives without trusting their entries, and bounded reads of the files
+//! a package names.
+//!
+//! [`unpack`] writes regular files and directories only, each created new (`O_EXCL`) and
+//! without following links; an entry that is a symbolic link, a device, a pipe or a socket, or
+//! whose name is absolute or climbs out with `..`, is refused with the archive's and the
+//! entry's names. [`read_text`] reads a file of a package (a model description, an SSD, a
+//! parameter file) only if it is a regular file of at most [`MAX_FILE`] bytes.
+
+use std::io::{self, Read};
+use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt};
+use std::path::{Component, Path, PathBuf};
+
+/// The largest package file [`read_text`] reads (a model description, SSD or parameter file).
+pub const MAX_FILE: u64 = 16 << 20;
+
+const S_IFMT: u32 = 0o170000;
+const S_IFREG: u32 = 0o100000;
+const S_IFDIR: u32 = 0o040000;
+
+/// What an entry's Unix mode says it is, when it is not a file or a directory.
+fn special(mode: u32) -> Option<&'static str> {
+    match mode & S_IFMT {
+        0 | S_IFREG | S_IFDIR => None,
+        0o120000 => Some("a symbolic link"),
+        0o020000 => Some("a character device"),
+        0o060000 => Some("a block device"),
+        0o010000 => Some("a named pipe"),
+        0o140000 => Some("a socket"),
+        _ => Some("not a regular file"),
+    }
+}
+
+/// The relative path of entry `name` inside the directory, or why it has none.
+fn relative(name: &str) -> Result<PathBuf, &'static str> {
+    if name.contains('\0') {
+        return Err("has a NUL byte in its name");
+    }
+    if name.starts_with('/') || name.starts_with('\\') || name.get(1..2) == Some(":") {
+        return Err("has an absolute path");
+    }
+    let mut out = PathBuf::new();
+    for part in Path::new(name).components() {
+        match part {
+            Component::Normal(p) if p.to_str().is_some_and(|s| s.contains('\\')) => {
+                return Err("has a backslash in its name")
+            }
+            Component::Normal(p) => out.push(p),
+            Component::CurDir => {}
+            Component::ParentDir => return Err("leaves the directory ('..')"),
+            Component::RootDir | Component::Prefix(_) => return Err("has an absolute path"),
+        }
+    }
+    if out.as_os_str().is_empty() {
+        return Err("has an empty name");
+    }
+    Ok(out)
+}
+
+/// Create directory `rel` (and its parents) under `dir`, none of them followed as a link.
+fn make_dirs(dir: &Path, rel: &Path) -> io::Result<()> {
+    let mut at = dir.to_path_buf();
+    for part in rel.components() {
+        at.push(part);
+        match std::fs::DirBuilder::new().mode(0o700).create(&at) {
+            Ok(()) => {}
+            Err(e) if e.kind() == io::ErrorKind::AlreadyExists => {
+                if !std::fs::symlink_metadata(&at)?.is_dir() {
+                    return Err(io::Error::new(e.kind(), "exists and is not a directory"));
+                }
+            }
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}
+
+/// Unpack the entries of `archive` (named `label` in errors) whose names pass `keep` into
+/// `dir`, a fresh directory of ours. Errors are one line naming the archive and the entry.
+pub fn unpack<R: io::Read + io::Seek>(
+    archive: &mut zip::ZipArchive<R>,
+    label: &Path,
+    dir: &Path,
+    keep: impl Fn(&str) -> bool,
+) -> Result<(), String> {
+    let label = label.display();
+    for i in 0..archive.len() {
+        let mut entry = archive
+            .by_index(i)
+            .map_err(|e| format!("{label}: entry {i}: {e}"))?;
+        let name = entry.name().to_owned();
+        if !keep(&name) {
+            continue;
+        }
+        let refuse = |why: &str| format!("{label}: entry '{name}' {why}: refused");
+        if let Some(kind) = entry.unix_mode().and_then(special) {
+            return Err(refuse(&format!("is {kind}")));
+        }
+        let rel = relative(&name).map_err(refuse)?;
+        let out = dir.join(&rel);
+        let failed = |e: io::Error| format!("{label}: entry '{name}': {}: {e}", out.display());
+        if entry.is_dir() {
+            make_dirs(dir, &rel).map_err(failed)?;
+            continue;
+        }
+        if let Some(parent) = rel.parent() {
+            make_dirs(dir, parent).map_err(failed)?;
+        }
+        let executable = entry.unix_mode().is_some_and(|m| m & 0o111 != 0);
+        let mut file = std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .mode(if executable { 0o700 } else { 0o600 })
+            .custom_flags(libc::O_NOFOLLOW)
+            .open(&out)
+            .map_err(|e| {
+                if e.kind() == io::ErrorKind::AlreadyExists {
+                    refuse("appears twice (or clashes with a directory)")
+                } else {
+                    failed(e)
+                }
+            })?;
+        io::copy(&mut entry, &mut file).map_err(failed)?;
+    }
+    Ok(())
+}
+
+/// The text of the package file `path`: a regular file of at most [`MAX_FILE`] bytes, valid
+/// UTF-8. A pipe or device is refused without being read (opening does not wait for a writer).
+pub fn read_text(path: &Path) -> io::Result<String> {
+    let file = std::fs::OpenOptions::new()
+        .read(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)?;
+    let meta = file.metadata()?;
+    if !meta.is_file() {
+        return Err(io::Error::new(
+            io::ErrorKind::InvalidInput,
+            "not a regular file",
+        ));
+    }
+    if meta.len() > MAX_FILE {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    file.take(MAX_FILE + 1).read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > MAX_FILE {
+        return Err(too_large());
+    }
+    String::from_utf8(bytes)
+        .map_err(|_| io::Error::new(io::ErrorKind::InvalidData, "not valid UTF-8 text"))
+}
+
+fn too_large() -> io::Error {
+    io::Error::new(
+        io::ErrorKind::InvalidData,
+        format!("larger than {} MiB, the reader's limit", MAX_FILE >> 20),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_that_leave_the_directory_have_no_relative_path() {
+        assert_eq!(relative("a/b.txt").unwrap(), Path::new("a/b.txt"));
+        assert_eq!(relative("./a").unwrap(), Path::new("a"));
+        for bad in [
+            "../x",
+            "a/../../x",
+            "a/..",
+            "/etc/passwd",
+            "C:/x",
+            "a\\..\\x",
+            "",
+        ] {
+            assert!(relative(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn special_files_are_named() {
+        assert_eq!(special(0o120777), Some("a symbolic link"));
+        assert_eq!(special(0o020644), Some("a character device"));
+        assert_eq!(special(0o100644), None);
+        assert_eq!(special(0o040755), None);
+    }
+}

@@ -75,7 +75,8 @@ unsafe extern "C" fn logger(
 
 #[test]
 fn panics_are_contained_and_errors_escalate() {
-    let dir = std::env::temp_dir().join(format!("fragile-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("fragile-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(dir.join("config.toml"), "").unwrap();
     let guid = fmi_export::describe::<Fragile>(&Config::default(), None)

@@ -123,7 +123,8 @@ struct Resources(std::path::PathBuf);
 
 impl Resources {
     fn new(tag: &str, config: &str) -> Self {
-        let dir = std::env::temp_dir().join(format!("probe-{tag}-{}", std::process::id()));
+        let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+            .join(format!("probe-{tag}-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         std::fs::write(dir.join("config.toml"), config).unwrap();
         Resources(dir)

@@ -9,7 +9,8 @@ use std::path::PathBuf;
 /// A resources directory holding `case.toml` (ieee9 with SG2's governor `t_ch` set to `t_ch`)
 /// and a config that selects it, with `events` appended to `[model]`.
 fn resources(name: &str, t_ch: f64, events: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("fmu-grid-{name}-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("fmu-grid-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let case = fmu_grid::case::builtin_text("ieee9").expect("the built-in ieee9");
@@ -94,7 +95,8 @@ fn a_tripped_generator_is_out_of_service_in_the_outputs() {
 #[test]
 fn a_machine_that_loses_synchronism_ends_the_step_with_an_error_naming_it() {
     // SG3 dispatched at 150 MW, then line 5–6 trips: it slips a pole in the first swing.
-    let dir = std::env::temp_dir().join(format!("fmu-grid-slip-{}", std::process::id()));
+    let dir = std::path::Path::new(env!("CARGO_TARGET_TMPDIR"))
+        .join(format!("fmu-grid-slip-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     let case = fmu_grid::case::builtin_text("ieee9").expect("the built-in ieee9");

@@ -1365,9 +1365,8 @@ mod tests {
         scenario: &Path,
     ) -> Result<(ssp::System, BTreeMap<String, ModelDescription>), String> {
         let name = name_of(scenario).unwrap();
-        let dir =
-            std::env::temp_dir().join(format!("xtask-scenario-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
+        let tmp = dvpp_cosim::tmp::TempDir::new(&format!("xtask-scenario-{name}")).unwrap();
+        let dir = tmp.path().to_path_buf();
         let mut mds = BTreeMap::new();
         let mut one = |b: &Build| -> Result<ModelDescription, String> {
             let res = dir.join(&b.staging);
@@ -1472,8 +1471,8 @@ mod tests {
 
     #[test]
     fn hybrid_dvpp_wires_grid_following_units_and_two_complements() {
-        let dir = std::env::temp_dir().join(format!("xtask-hybrid-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new("xtask-hybrid").unwrap();
+        let dir = tmp.path().to_path_buf();
         let path = dir.join("hybrid.toml");
         let mut text = String::from(
             "description = \"hybrid\"\n[experiment]\nstop = 1.0\nstep = 1e-3\n\
@@ -1499,8 +1498,8 @@ mod tests {
 
     #[test]
     fn eps_splits_every_unit_and_its_slot() {
-        let dir = std::env::temp_dir().join(format!("xtask-eps-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new("xtask-eps").unwrap();
+        let dir = tmp.path().to_path_buf();
         for (eps, connections) in [
             // Both forms: as the hand-written hybrid DVPP.
             (0.25, 6 * 11 + 3 * 3 + 3 + 4 + 2 * 2 + 4),
@@ -1605,8 +1604,8 @@ mod tests {
 
     /// The error bundling `text` (a scenario file body) gives.
     fn bundle_error(text: &str) -> String {
-        let dir = std::env::temp_dir().join(format!("xtask-bad-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new("xtask-bad").unwrap();
+        let dir = tmp.path().to_path_buf();
         let path = dir.join("bad.toml");
         std::fs::write(&path, text).unwrap();
         let mut one = |_: &Build| -> Result<ModelDescription, String> { Err("built".into()) };
@@ -1617,8 +1616,8 @@ mod tests {
 
     #[test]
     fn a_complement_closing_more_low_pass_units_than_it_can_is_refused() {
-        let dir = std::env::temp_dir().join(format!("xtask-lpf-{}", std::process::id()));
-        std::fs::create_dir_all(&dir).unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new("xtask-lpf").unwrap();
+        let dir = tmp.path().to_path_buf();
         let path = dir.join("many_lpf.toml");
         let mut text = String::from(
             "description = \"many\"\n[experiment]\nstop = 1.0\nstep = 1e-3\n\

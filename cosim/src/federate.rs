@@ -804,6 +804,8 @@ fn drive(
             columns: &columns,
             start: seconds(start),
             stop: seconds(stop),
+            step: seconds(step),
+            record: &[],
         })?;
     }
     let mut row = Vec::with_capacity(columns.len());

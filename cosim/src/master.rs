@@ -19,9 +19,13 @@
 mod algorithm;
 mod observer;
 mod pool;
+mod results;
 
 pub use algorithm::{Algorithm, GaussSeidel, Iterative, Jacobi};
-pub use observer::{partial_path, CsvWriter, End, Observer, Progress, Recorder, RunInfo};
+pub use observer::{End, Observer, Progress, Recorder, RunInfo};
+pub use results::{
+    matches, partial_path, Csv, CsvWriter, Format, Mat, MatWriter, Record, ResultWriter, Select,
+};
 
 pub use crate::fmu::Sharing;
 
@@ -297,6 +301,8 @@ pub struct System {
     stop: Option<f64>,
     step: Option<f64>,
     name: String,
+    /// The signals recorded by default (the SSP's record annotation).
+    record: Vec<String>,
     /// The current communication point: time, then every unit's recorded outputs.
     pub(crate) row: Vec<f64>,
     /// Warnings so far (loops, FMU warnings).
@@ -754,6 +760,7 @@ impl System {
             start_time: de.start_time.unwrap_or(0.0),
             stop_time: Some(de.stop_time.unwrap_or(1.0)),
             step_size: Some(de.step_size.unwrap_or(1e-3)),
+            record: Vec::new(),
         };
         System::assemble(&sys, vec![fmu])
     }
@@ -879,6 +886,7 @@ impl System {
             stop: sys.stop_time,
             step: sys.step_size,
             name: sys.name.clone(),
+            record: sys.record.clone(),
             row: Vec::new(),
             warnings,
             threads: 1,
@@ -1056,12 +1064,19 @@ impl System {
         }
     }
 
+    /// Simulate to the end keeping every output in memory.
     pub fn simulate(&mut self, opts: &Options) -> Result<Table, Error> {
-        let mut recorder = Recorder::default();
+        self.simulate_recording(opts, Record::parse("all"))
+    }
+
+    /// Simulate to the end keeping what `record` chooses in memory (the studies keep the
+    /// system's default set, [`Record::system_default`]).
+    pub fn simulate_recording(&mut self, opts: &Options, record: Record) -> Result<Table, Error> {
+        let mut recorder = Select::new(Recorder::default(), record);
         let mut algorithm = opts.algorithm.algorithm();
         let (end, _, _) = self.simulate_with(opts, &mut *algorithm, &mut [&mut recorder])?;
         match end {
-            End::Completed => Ok(recorder.table),
+            End::Completed => Ok(recorder.inner.table),
             End::Interrupted { signal, at } => Err(Error(format!(
                 "interrupted by signal {signal} at t = {at} s"
             ))),
@@ -1098,6 +1113,8 @@ impl System {
             columns: &columns,
             start: seconds(start),
             stop: seconds(stop),
+            step: seconds(step),
+            record: &self.record,
         };
         let mut started = Vec::with_capacity(observers.len());
         let mut result = Ok(None);

@@ -48,6 +48,9 @@ pub const NS_SSV: &str = "http://ssp-standard.org/SSP1/SystemStructureParameterV
 pub const NS_OSP: &str = "http://opensimulationplatform.com/SSP/OSPAnnotations";
 /// `type` of the `ssc:Annotation` holding libcosim's algorithm settings.
 pub const OSP_ANNOTATION: &str = "com.opensimulationplatform";
+/// `type` of the `ssc:Annotation` holding the signals our master records by default
+/// (`<Record signals="grid.pcc.*,*.p"/>`); other masters ignore it.
+pub const RECORD_ANNOTATION: &str = "org.dvpp-fmu.record";
 /// The system structure file at the root of an .ssp archive.
 pub const SSD_FILE: &str = "SystemStructure.ssd";
 /// MIME type of FMU components (the default of `ssd:Component type`).
@@ -234,6 +237,9 @@ pub struct System {
     pub stop_time: Option<f64>,
     /// OSP `FixedStepAlgorithm baseStepSize`.
     pub step_size: Option<f64>,
+    /// The `component.variable` patterns our master records unless told otherwise
+    /// ([`RECORD_ANNOTATION`]); empty: every output.
+    pub record: Vec<String>,
 }
 
 impl System {
@@ -301,11 +307,12 @@ impl System {
         if let Some(stop) = &stop {
             attrs.push(("stopTime", stop));
         }
-        match self.step_size {
-            None => w.leaf("ssd:DefaultExperiment", &attrs),
-            Some(h) => {
-                w.open("ssd:DefaultExperiment", &attrs);
-                w.open("ssd:Annotations", &[]);
+        if self.step_size.is_none() && self.record.is_empty() {
+            w.leaf("ssd:DefaultExperiment", &attrs);
+        } else {
+            w.open("ssd:DefaultExperiment", &attrs);
+            w.open("ssd:Annotations", &[]);
+            if let Some(h) = self.step_size {
                 w.open("ssc:Annotation", &[("type", OSP_ANNOTATION)]);
                 w.open("osp:Algorithm", &[]);
                 w.leaf(
@@ -314,9 +321,14 @@ impl System {
                 );
                 w.close("osp:Algorithm");
                 w.close("ssc:Annotation");
-                w.close("ssd:Annotations");
-                w.close("ssd:DefaultExperiment");
             }
+            if !self.record.is_empty() {
+                w.open("ssc:Annotation", &[("type", RECORD_ANNOTATION)]);
+                w.leaf("Record", &[("signals", &self.record.join(","))]);
+                w.close("ssc:Annotation");
+            }
+            w.close("ssd:Annotations");
+            w.close("ssd:DefaultExperiment");
         }
         w.close("ssd:SystemStructureDescription");
         w.out
@@ -612,6 +624,7 @@ pub fn write_copies(fmu: &Path, n: usize, dir: &Path, step: f64) -> Result<(), S
         start_time: 0.0,
         stop_time: Some(1.0),
         step_size: Some(step),
+        record: Vec::new(),
     };
     let at = |e: std::io::Error| format!("{}: {e}", dir.display());
     std::fs::create_dir_all(dir.join("resources")).map_err(at)?;
@@ -1045,6 +1058,7 @@ fn parse_ssd_labelled(xml: &str, dir: &Path, file: &str) -> Result<System, Error
             }
         }
         system.step_size = read_step_size(&d, e)?;
+        system.record = read_record(&d, e)?;
     }
     Ok(system)
 }
@@ -1082,6 +1096,33 @@ fn read_step_size(d: &Doc, experiment: &Node) -> Result<Option<f64>, Error> {
         }
     }
     Ok(step)
+}
+
+/// The signals of the [`RECORD_ANNOTATION`] in `ssd:DefaultExperiment/ssd:Annotations` (after
+/// [`read_step_size`] checked the annotations' shape).
+fn read_record(d: &Doc, experiment: &Node) -> Result<Vec<String>, Error> {
+    let mut record = Vec::new();
+    for (_, _, annotations) in ssp_children(experiment) {
+        for (_, _, a) in ssp_children(annotations) {
+            if d.attr(a, "type")? != RECORD_ANNOTATION {
+                continue;
+            }
+            for r in &a.children {
+                if r.local != "Record" {
+                    return Err(d.err(r, "unexpected element (the record annotation holds <Record signals=\"...\"/>)"));
+                }
+                let signals = d.attr(r, "signals")?;
+                record.extend(
+                    signals
+                        .split(',')
+                        .map(str::trim)
+                        .filter(|p| !p.is_empty())
+                        .map(String::from),
+                );
+            }
+        }
+    }
+    Ok(record)
 }
 
 fn read_system(d: &Doc, n: &Node, dir: &Path) -> Result<System, Error> {
@@ -1185,6 +1226,7 @@ fn read_system(d: &Doc, n: &Node, dir: &Path) -> Result<System, Error> {
         start_time: 0.0,
         stop_time: None,
         step_size: None,
+        record: Vec::new(),
     })
 }
 
@@ -1672,6 +1714,7 @@ mod tests {
             start_time: 0.5,
             stop_time: Some(10.0),
             step_size: Some(1e-3),
+            record: Vec::new(),
         }
     }
 
@@ -2337,6 +2380,7 @@ mod tests {
             start_time: 0.0,
             stop_time: Some(0.5),
             step_size: Some(1e-3),
+            record: Vec::new(),
         }
     }
 }

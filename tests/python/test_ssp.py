@@ -26,7 +26,8 @@ def ssp(name):
 
 def ours(path, tmp_path, stop=STOP, step=STEP):
     out = tmp_path / "ours.csv"
-    subprocess.run([COSIM, str(path), "--stop", str(stop), "--step", str(step), "--out", str(out)],
+    subprocess.run([COSIM, str(path), "--stop", str(stop), "--step", str(step), "--out", str(out),
+                    "--record", "all"],
                    check=True, capture_output=True)
     with open(out) as f:
         rows = list(csv.reader(f))

@@ -37,7 +37,15 @@ fn dir(name: &str) -> PathBuf {
 fn master(system: &Path, stop: &str, out: &Path) -> f64 {
     let done = Command::new(cosim())
         .arg(system)
-        .args(["--stop", stop, "--algorithm", "jacobi", "--out"])
+        .args([
+            "--stop",
+            stop,
+            "--algorithm",
+            "jacobi",
+            "--record",
+            "all",
+            "--out",
+        ])
         .arg(out)
         .output()
         .expect("run cosim");

@@ -7,7 +7,7 @@
 //! at initialization), the same draws for both disturbances; the DER and operator keep
 //! `rot.rx` = 1 (the operator does not know the lines).
 
-use dvpp_cosim::master::{self, Options, Scheme};
+use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::nrmse;
@@ -106,11 +106,14 @@ fn simulate(pkg: &ssp::Package, run: &mut Run) {
     let table = master::System::load(pkg)
         .and_then(|mut s| {
             s.quiet();
-            s.simulate(&Options {
-                stop: None,
-                step: None,
-                algorithm: Scheme::Jacobi,
-            })
+            s.simulate_recording(
+                &Options {
+                    stop: None,
+                    step: None,
+                    algorithm: Scheme::Jacobi,
+                },
+                Record::system_default(),
+            )
         })
         .map_err(|e| e.to_string());
     if let Err(e) = table.and_then(|t| measure(run, &t)) {

@@ -3,6 +3,7 @@
 mod case3;
 mod catalog;
 mod docs;
+mod federation;
 mod outage;
 mod scenario;
 mod sweep;
@@ -22,6 +23,8 @@ const PYTHON_PACKAGES: &[&str] = &[
     "libcosimpy==0.0.6",
     "pytest==8.4.2",
     "helics==3.6.1",
+    // tests/python/test_results.py reads the .mat result files as users do.
+    "scipy==1.17.1",
     "dpsim==1.4.0; sys_platform == 'linux' and platform_machine == 'x86_64' and python_version >= '3.10' and python_version < '3.14'",
 ];
 
@@ -392,6 +395,9 @@ fn bench() -> Result {
         ring.display()
     ));
     c.arg(format!("system|case1_load|{}|20", ssp.display()));
+    // The cost of recording (docs/results.md): case study I, and 192 DER units (the scale
+    // bench's system, written below) at 1 ms.
+    c.arg(format!("results|case1_load|{}|20", ssp.display()));
     for b in BENCHES {
         let sets: Vec<String> = b.set.iter().map(|(n, v)| format!("{n}={v}")).collect();
         c.arg(format!(
@@ -413,6 +419,17 @@ fn bench() -> Result {
         systems.display()
     ));
     run(&mut c)?;
+    run(master_binary("bench").arg(format!(
+        "results|192 DER units|{}|1",
+        systems.join("n192").display()
+    )))?;
+    // Our master against HELICS federations of the same systems (docs/scaling.md).
+    federation::bench(
+        &cosim,
+        &ssp,
+        &der,
+        &root().join("target").join("bench").join("federation"),
+    )?;
     // The same systems in libcosim, side by side with ours.
     run(Command::new(&python)
         .arg(root().join("tests").join("python").join("bench_scale.py"))
@@ -425,7 +442,7 @@ fn bench() -> Result {
 const DEMO_RUNS: [(&str, &str); 2] = [("case1_load", "load step"), ("case1_cloud", "cloud")];
 
 fn demo() -> Result {
-    use dvpp_cosim::master::{self, CsvWriter, Options, Progress, Recorder};
+    use dvpp_cosim::master::{self, CsvWriter, Options, Progress, Record, Recorder, Select};
     use dvpp_report::casestudy::{self, Signals};
     bundle(&[])?;
     let results = root().join("results");
@@ -435,10 +452,11 @@ fn demo() -> Result {
         let ssp = root().join("dist").join(name).join(format!("{name}.ssp"));
         let started = std::time::Instant::now();
         let csv = results.join(format!("{name}.csv"));
+        // What the figures and metrics need: the scenario's default record set.
         let (mut writer, mut progress, mut recorder) = (
-            CsvWriter::new(&csv),
+            Select::new(CsvWriter::new(&csv), Record::system_default()),
             Progress::default(),
-            Recorder::default(),
+            Select::new(Recorder::default(), Record::system_default()),
         );
         let outcome = master::run(
             &ssp,
@@ -455,7 +473,7 @@ fn demo() -> Result {
             started.elapsed().as_secs_f64(),
             csv.display()
         );
-        signals.push(Signals::of(&recorder.table).map_err(|e| format!("{name}: {e}"))?);
+        signals.push(Signals::of(&recorder.inner.table).map_err(|e| format!("{name}: {e}"))?);
     }
     let (load, cloud) = (&signals[0], &signals[1]);
     let (gap, worst) = casestudy::max_gap_at(&cloud.df, &load.df, 0);

@@ -2,7 +2,7 @@
 //! per grid-forming share ε (stable within ratings, oscillatory, or lost synchronism), a CSV,
 //! a table and the figure.
 
-use dvpp_cosim::master::{self, Options, Scheme};
+use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
 use dvpp_report::plot::{Figure, Panel, Style};
@@ -163,11 +163,14 @@ pub fn run(dist: &Path) -> Result<Vec<Verdict>, String> {
                     .and_then(|pkg| {
                         let mut sys = master::System::load(&pkg).map_err(|e| e.to_string())?;
                         sys.quiet();
-                        sys.simulate(&Options {
-                            stop: None,
-                            step: None,
-                            algorithm: Scheme::Jacobi,
-                        })
+                        sys.simulate_recording(
+                            &Options {
+                                stop: None,
+                                step: None,
+                                algorithm: Scheme::Jacobi,
+                            },
+                            Record::system_default(),
+                        )
                         .map_err(|e| format!("{name}: {e}"))
                     });
                 let verdict = table

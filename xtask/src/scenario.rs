@@ -97,7 +97,34 @@ pub struct Experiment {
     pub stop: f64,
     /// Communication step, s.
     pub step: f64,
+    /// The `component.variable` patterns `cosim` records by default (the SSP's record
+    /// annotation); absent: [`RECORD`].
+    pub record: Option<Vec<String>>,
 }
+
+/// What a scenario's result records unless the scenario or the user says otherwise: what the
+/// case-study figures and tables plot and measure (PCC and POC quantities, the units' powers,
+/// currents, dc links and set points, the machines' powers, the operator's gains and desired
+/// response). A pattern may match nothing in a given system.
+pub const RECORD: [&str; 17] = [
+    "grid.pcc*",
+    "grid.energized",
+    "*.synchronized",
+    "grid.poc[*]*",
+    "grid.coi.f",
+    "grid.der[*].p",
+    "grid.der[*].q",
+    "grid.sg[*].p",
+    "grid.sg[*].in_service",
+    "grid.sys.*",
+    "grid.area.*",
+    "*.v_dc",
+    "*.i_ac",
+    "*.i_limit",
+    "*.p_set",
+    "*.p_rot",
+    "operator*",
+];
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -1234,6 +1261,10 @@ fn system(
         start_time: sc.experiment.start,
         stop_time: Some(sc.experiment.stop),
         step_size: Some(sc.experiment.step),
+        record: match &sc.experiment.record {
+            Some(r) => r.clone(),
+            None => RECORD.iter().map(|p| p.to_string()).collect(),
+        },
     })
 }
 

@@ -9,7 +9,7 @@
 //! out: they move the operator's dc gains away from the units' bundled start values, so a run
 //! would not start flat. Each Monte Carlo run is 10 s with the step at t = 1 s.
 
-use dvpp_cosim::master::{self, Options, Scheme};
+use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
@@ -230,7 +230,7 @@ fn run_all(dist: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, Stri
                     master::System::load(&pkg)
                         .and_then(|mut s| {
                             s.quiet();
-                            s.simulate(&opts)
+                            s.simulate_recording(&opts, Record::system_default())
                         })
                         .map_err(|e| e.to_string())
                 });

@@ -9,12 +9,17 @@
 //! and separate binaries on 1 and 2 threads, each run a process of its own (for its peak RSS),
 //! UNIT_STEPS / N steps of 1 ms, five runs interleaved: µs per macro step, the linear fit
 //! of cost against N, load time, peak RSS, the 2-thread speed-up and its serial part
-//! (docs/scaling.md).
+//! (docs/scaling.md). `results|LABEL|PATH|STOP` runs the system with no output, with its
+//! default record set and with every output, each to CSV and to `.mat`, five rounds
+//! interleaved: the best µs per step of each, its ratio to no output and the file's size
+//! (docs/results.md).
 
 #[path = "bench/scale.rs"]
 mod scale;
 
-use dvpp_cosim::master::{self, CsvWriter, End, Execution, Observer, Options, Scheme};
+use dvpp_cosim::master::{
+    self, CsvWriter, End, Execution, MatWriter, Observer, Options, Record, Scheme, Select,
+};
 use dvpp_cosim::{Fmu, Status};
 use model_description::BaseType;
 use std::process::ExitCode;
@@ -166,6 +171,91 @@ fn measure_system(spec: &str) -> Result<Vec<(String, f64, u64)>, String> {
     Ok(rows)
 }
 
+/// An observer that takes every point and keeps nothing: what reading the outputs costs.
+struct Discard;
+
+impl Observer for Discard {
+    fn start(&mut self, _: &master::RunInfo) -> Result<(), master::Error> {
+        Ok(())
+    }
+    fn sample(&mut self, row: &[f64]) -> Result<(), master::Error> {
+        std::hint::black_box(row);
+        Ok(())
+    }
+    fn finish(&mut self, _: &End) -> Result<(), master::Error> {
+        Ok(())
+    }
+}
+
+/// `results|LABEL|PATH|STOP`: the cost of recording, side by side (see the module docs).
+fn measure_results(spec: &str) -> Result<(), String> {
+    let parts: Vec<&str> = spec.split('|').collect();
+    let [_, label, path, stop] = parts.as_slice() else {
+        return Err(format!(
+            "bad benchmark '{spec}': expected results|LABEL|PATH|STOP"
+        ));
+    };
+    let stop: f64 = stop
+        .parse()
+        .map_err(|_| format!("{label}: bad stop '{stop}'"))?;
+    let path = std::path::Path::new(path);
+    let scratch = dvpp_cosim::tmp::TempDir::new("bench-results").map_err(|e| e.to_string())?;
+    const KINDS: [(&str, bool, bool); 6] = [
+        ("no output", false, false),
+        ("every output read, none written", true, false),
+        ("default set, CSV", false, true),
+        ("default set, .mat", false, false),
+        ("every output, CSV", true, true),
+        ("every output, .mat", true, false),
+    ];
+    let mut best = [f64::INFINITY; KINDS.len()];
+    let mut size = [0u64; KINDS.len()];
+    let mut columns = [0usize; KINDS.len()];
+    for _ in 0..5 {
+        for (k, (_, all, csv)) in KINDS.iter().enumerate() {
+            let record = if *all {
+                Record::parse("all")
+            } else {
+                Record::system_default()
+            };
+            let file = scratch
+                .path()
+                .join(format!("r{k}.{}", if *csv { "csv" } else { "mat" }));
+            let (ns, cols) = if k == 0 {
+                (macro_step(path, stop, Scheme::Jacobi, 1, &mut [])?.0, 0)
+            } else if k == 1 {
+                let mut w = Select::new(Discard, record);
+                let ns = macro_step(path, stop, Scheme::Jacobi, 1, &mut [&mut w])?.0;
+                (ns, w.columns().len())
+            } else if *csv {
+                let mut w = Select::new(CsvWriter::new(&file), record);
+                let ns = macro_step(path, stop, Scheme::Jacobi, 1, &mut [&mut w])?.0;
+                (ns, w.columns().len())
+            } else {
+                let mut w = Select::new(MatWriter::new(&file), record);
+                let ns = macro_step(path, stop, Scheme::Jacobi, 1, &mut [&mut w])?.0;
+                (ns, w.columns().len())
+            };
+            best[k] = best[k].min(ns);
+            columns[k] = cols;
+            size[k] = std::fs::metadata(&file).map_or(0, |m| m.len());
+        }
+    }
+    println!("\nresults: {label} to {stop} s (best of 5, interleaved)");
+    println!("| recording | columns | µs per step | speed against no output | file size |");
+    println!("|---|---:|---:|---:|---:|");
+    for (k, (what, _, _)) in KINDS.iter().enumerate() {
+        println!(
+            "| {what} | {} | {:.2} | {:.2}× | {:.1} MB |",
+            columns[k],
+            best[k] / 1e3,
+            best[0] / best[k],
+            size[k] as f64 / 1e6
+        );
+    }
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
     // A child of `scale`: one run, one line of results on stdout.
@@ -188,6 +278,13 @@ fn main() -> ExitCode {
     for spec in args {
         if spec.starts_with("scale|") {
             if let Err(e) = scale::measure(&spec) {
+                eprintln!("bench: {e}");
+                failed = true;
+            }
+            continue;
+        }
+        if spec.starts_with("results|") {
+            if let Err(e) = measure_results(&spec) {
                 eprintln!("bench: {e}");
                 failed = true;
             }

@@ -2,7 +2,8 @@
 
 use dvpp_cosim::federate::{self, FederateOptions, FederationOptions};
 use dvpp_cosim::master::{
-    self, partial_path, CsvWriter, End, Execution, Observer, Options, Progress, Recorder, Scheme,
+    self, partial_path, CsvWriter, End, Execution, MatWriter, Observer, Options, Progress, Record,
+    Recorder, Scheme, Select,
 };
 use dvpp_cosim::{interrupt, Table};
 use dvpp_report::plot::{Figure, Panel, Style};
@@ -12,13 +13,20 @@ use std::process::ExitCode;
 const USAGE: &str = "usage: cosim SYSTEM.ssp|SYSTEM_DIR|SYSTEM.ssd|FILE.fmu [--stop T] [--step H]
              [--algorithm jacobi|gauss-seidel|iterative [--tolerance RTOL]
              [--relaxation W] [--max-iterations N]] [--threads N|all]
-             [--out FILE.csv | --no-csv] [--plot FILE.svg] [--signals component.variable,...]
+             [--out FILE.csv|FILE.mat | --no-csv] [--record PATTERN,...|all]
+             [--output-interval T] [--plot FILE.svg] [--signals component.variable,...]
 
 Simulates an SSP system (an .ssp archive, a directory with SystemStructure.ssd, or an .ssd file)
 from its DefaultExperiment and OSP step size, or one FMU on its own (inputs held at their start
-values), and streams every output to FILE.csv (default: <system name>.csv) as the run goes: a
+values), and streams its outputs to FILE.csv (default: <system name>.csv) as the run goes: a
 `time` column, then one `component.variable` column per output (RFC 4180 quoting, full f64
-precision). Jacobi (default) steps every unit from the same inputs; gauss-seidel one after the
+precision); an --out ending in .mat writes a MATLAB v4 result file as Modelica tools do
+(scipy.io.loadmat, MATLAB, Modelica result readers; docs/results.md). What is recorded: the
+system's default set (the patterns its SSP's record annotation names, which the bundler sets
+to what the case-study figures plot; every output if it has none), or --record with
+comma-separated `component.variable` patterns (`*` matches any text: grid.pcc.*,*.p,
+operator.ref.*; `all` for every output; a pattern that matches nothing is an error), every
+--output-interval seconds (a whole multiple of the step; default: every step). Jacobi (default) steps every unit from the same inputs; gauss-seidel one after the
 other in dependency order; iterative repeats each step from the saved FMU states until the
 exchanged values settle (--tolerance: relative, default 1e-2, absolute 1e-3 of it; each new
 attempt moves --relaxation (default 1) of the way to the values obtained; at most
@@ -59,6 +67,47 @@ struct Args {
     exec: Execution,
     plot: Option<PathBuf>,
     signals: Vec<String>,
+    record: Record,
+}
+
+/// The result file of a run: CSV, or MATLAB v4 for an `--out` ending in `.mat`.
+enum Results {
+    Csv(Select<CsvWriter>),
+    Mat(Select<MatWriter>),
+}
+
+impl Results {
+    fn new(out: &Path, record: Record) -> Results {
+        if out
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
+        {
+            Results::Mat(Select::new(MatWriter::new(out), record))
+        } else {
+            Results::Csv(Select::new(CsvWriter::new(out), record))
+        }
+    }
+
+    fn observer(&mut self) -> &mut dyn Observer {
+        match self {
+            Results::Csv(s) => s,
+            Results::Mat(s) => s,
+        }
+    }
+
+    fn rows(&self) -> u64 {
+        match self {
+            Results::Csv(s) => s.inner.rows(),
+            Results::Mat(s) => s.inner.rows(),
+        }
+    }
+
+    fn columns(&self) -> usize {
+        match self {
+            Results::Csv(s) => s.columns().len(),
+            Results::Mat(s) => s.columns().len(),
+        }
+    }
 }
 
 /// The value of `flag`: a positive finite number.
@@ -74,6 +123,7 @@ fn parse() -> Result<Args, String> {
     let mut it = std::env::args().skip(1);
     let mut args = Args {
         iterative: master::Iterative::new(),
+        record: Record::system_default(),
         ..Args::default()
     };
     while let Some(a) = it.next() {
@@ -88,6 +138,16 @@ fn parse() -> Result<Args, String> {
             }
             "--out" => args.out = Some(it.next().ok_or("--out needs a file")?.into()),
             "--no-csv" => args.no_csv = true,
+            "--record" => {
+                let list = it.next().ok_or("--record needs patterns (or 'all')")?;
+                args.record = Record {
+                    interval: args.record.interval,
+                    ..Record::parse(&list)
+                };
+            }
+            "--output-interval" => {
+                args.record.interval = Some(number("--output-interval", it.next())?)
+            }
             "--tolerance" => {
                 args.iterative.rtol = number("--tolerance", it.next())?;
                 args.iterative.atol = 1e-3 * args.iterative.rtol;
@@ -229,12 +289,14 @@ fn main() -> ExitCode {
             return ExitCode::FAILURE;
         }
     }
-    let mut csv = out.as_deref().map(CsvWriter::new);
+    let mut results = out
+        .as_deref()
+        .map(|out| Results::new(out, args.record.clone()));
     let mut progress = Progress::default();
     let mut recorder = args.plot.as_ref().map(|_| Recorder::default());
     let mut observers: Vec<&mut dyn Observer> = vec![&mut progress];
-    if let Some(c) = csv.as_mut() {
-        observers.push(c);
+    if let Some(r) = results.as_mut() {
+        observers.push(r.observer());
     }
     if let Some(r) = recorder.as_mut() {
         observers.push(r);
@@ -262,7 +324,7 @@ fn main() -> ExitCode {
     if !outcome.warnings.is_empty() {
         eprintln!("cosim: {} warning(s), see above", outcome.warnings.len());
     }
-    let rows = csv.as_ref().map_or(0, |c| c.rows());
+    let rows = results.as_ref().map_or(0, Results::rows);
     let partial = |out: &Path| {
         format!(
             "{rows} complete rows up to t = {} s in {}",
@@ -283,7 +345,11 @@ fn main() -> ExitCode {
             );
             if let Some(out) = &out {
                 println!(
-                    "{name}: {steps} steps, {} columns -> {}",
+                    "{name}: {steps} steps; {rows} rows of {} of {} outputs -> {}",
+                    results
+                        .as_ref()
+                        .map_or(0, Results::columns)
+                        .saturating_sub(1),
                     outcome.columns,
                     out.display()
                 );

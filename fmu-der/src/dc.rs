@@ -109,7 +109,30 @@ pub struct DcSide {
     pub e_loss: f64,
     /// Stored energy at initialization.
     pub w0: f64,
+    /// The link's reserve is spent: it was run down to its floor (or up to its ceiling) and the
+    /// dc limit has acted since; the budget then holds the ac side to the source (see
+    /// [`DcSide::ac_budget`]).
+    #[serde(default)]
+    reserve_spent: Reserve,
 }
+
+/// Which side of the link's reserve is spent ([`DcSide::ac_budget`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct Reserve {
+    /// Run down to `v_min`: while the source is at its upper bound, the ac side may draw no
+    /// more than the source gives.
+    pub floor: bool,
+    /// Run up to `v_max`: while the source is at its lower bound, the ac side may return no
+    /// more than the source takes.
+    pub ceiling: bool,
+    /// The source sits at its upper (lower) bound.
+    pub at_cap: bool,
+    pub at_floor: bool,
+}
+
+/// The link counts as run down to its floor (up to its ceiling) within this fraction of its
+/// usable energy `W* - W_min` (`W_max - W*`).
+const RESERVE_SPENT: f64 = 0.05;
 
 impl DcSide {
     /// At the nominal dc voltage, supplying `p_ac` (and the losses) in steady state.
@@ -127,6 +150,7 @@ impl DcSide {
             e_ac: 0.0,
             e_loss: 0.0,
             w0: params.nominal_energy(),
+            reserve_spent: Reserve::default(),
         }
     }
 
@@ -155,16 +179,54 @@ impl DcSide {
     }
 
     /// The range of ac power the link can supply now: the source and losses, plus (minus) the
-    /// usable stored energy above `v_min` (room below `v_max`) spread over `t_budget`.
+    /// usable stored energy above `v_min` (room below `v_max`) spread over `t_budget`. Once the
+    /// reserve is spent (the link was run down to `v_min` or up to `v_max`), only the source and
+    /// losses until the dc limit has been released ([`DcSide::update_reserve`]): the link then
+    /// refills and stays as the reserve, where drawing it again whenever the source fell short
+    /// cycled it between its floor and nominal.
     pub fn ac_budget(&self) -> (f64, f64) {
         let p = &self.params;
         let w = self.energy();
         let (w_min, w_max) = (0.5 * p.c * p.v_min.powi(2), 0.5 * p.c * p.v_max.powi(2));
         let net = self.p_src() - self.p_loss();
+        let spent = self.reserve_spent;
         (
-            net - (w_max - w).max(0.0) / p.t_budget,
-            net + (w - w_min).max(0.0) / p.t_budget,
+            net - if spent.ceiling && spent.at_floor {
+                0.0
+            } else {
+                (w_max - w).max(0.0) / p.t_budget
+            },
+            net + if spent.floor && spent.at_cap {
+                0.0
+            } else {
+                (w - w_min).max(0.0) / p.t_budget
+            },
         )
+    }
+
+    /// Which side of the reserve is spent ([`DcSide::ac_budget`]).
+    #[cfg(test)]
+    pub fn reserve_spent(&self) -> Reserve {
+        self.reserve_spent
+    }
+
+    /// After a step: the reserve is spent when the link is within [`RESERVE_SPENT`] of its usable
+    /// energy from `v_min` or `v_max`, and available again once the dc limit's episode has ended
+    /// (`dc_limit_on` false: the limit has not acted for [`crate::limits::RELEASE`]).
+    pub fn update_reserve(&mut self, dc_limit_on: bool, cap: f64) {
+        let p = &self.params;
+        let floor = if p.storage { -cap } else { 0.0 };
+        let src = self.p_src();
+        let (w, w_star) = (self.energy(), p.nominal_energy());
+        let (w_min, w_max) = (0.5 * p.c * p.v_min.powi(2), 0.5 * p.c * p.v_max.powi(2));
+        let spent = &mut self.reserve_spent;
+        if !dc_limit_on {
+            *spent = Reserve::default();
+        }
+        spent.floor |= w - w_min <= RESERVE_SPENT * (w_star - w_min);
+        spent.ceiling |= w_max - w <= RESERVE_SPENT * (w_max - w_star);
+        spent.at_cap = src >= cap;
+        spent.at_floor = src <= floor;
     }
 
     /// Advance by `h` with the ac side drawing `p_ac` and the source within `[floor, cap]`
@@ -287,5 +349,43 @@ mod tests {
         let (_, hi) = dc.ac_budget();
         assert!(hi < hi0);
         assert!(dc.energy_residual().abs() < 1e-14);
+    }
+
+    #[test]
+    fn a_spent_reserve_is_held_back_while_the_source_is_at_its_cap() {
+        // A PV source capped at 0.3 pu while the ac side draws the budget's top.
+        let p = DcParams {
+            storage: false,
+            ..bess()
+        };
+        let mut dc = DcSide::new(p, 0.2);
+        let cap = 0.3;
+        for _ in 0..2000 {
+            let (_, hi) = dc.ac_budget();
+            dc.step(hi.max(0.5), 1e-3, cap);
+            dc.update_reserve(true, cap);
+            if dc.reserve_spent().floor {
+                break;
+            }
+        }
+        let spent = dc.reserve_spent();
+        assert!(spent.floor && spent.at_cap, "{spent:?}");
+        assert!(dc.v_dc() < 0.82, "run down to v_dc_min: {}", dc.v_dc());
+        // Only the source, less the losses, while the source is at its cap.
+        let (_, hi) = dc.ac_budget();
+        assert!((hi - (dc.p_src() - dc.p_loss())).abs() < 1e-12);
+        // Drawing less than the source refills the link; the reserve stays held back until the
+        // dc limit's episode has ended.
+        for _ in 0..3000 {
+            dc.step(0.1, 1e-3, cap);
+            dc.update_reserve(true, cap);
+        }
+        assert!(dc.v_dc() > 0.99, "refilled: {}", dc.v_dc());
+        assert!(dc.reserve_spent().floor);
+        dc.update_reserve(false, cap);
+        assert!(!dc.reserve_spent().floor);
+        let (_, hi) = dc.ac_budget();
+        assert!(hi > dc.p_src() - dc.p_loss() + 0.5);
+        assert!(dc.energy_residual().abs() < 1e-13);
     }
 }

@@ -94,6 +94,11 @@ struct Forming {
     /// limit acts.
     e: f64,
     theta: f64,
+    /// The angle's increment over the last step and its mean over `ANGLE_MEAN_TAU` (the part
+    /// the grid frequency explains): their difference is the angle move the next measured
+    /// power does not yet show (the current-limited mode's delay compensation).
+    dtheta: f64,
+    dtheta_mean: f64,
 }
 
 /// The grid-following controller state.
@@ -163,6 +168,18 @@ struct Startup {
 /// Below this terminal voltage (pu) a grid-following unit's PLL has no angle to lock to: the
 /// unit loses synchronism and blocks (a grid-forming unit keeps forming its voltage).
 const PLL_V_MIN: f64 = 0.05;
+
+/// Grid-forming, current-limited mode: the fraction of the limited power's change that the
+/// angle's last move makes (at the measured bus voltage) which the controls add to the measured
+/// power. The loop through the feedthrough of T_pf/m, with gain `g_net` per step through the
+/// network and `c` = this fraction of its gain at a fixed bus voltage, has the characteristic
+/// `z² - (1 - c) z + (g_net - c)` (without the compensation `z² - z + g_net`, roots of modulus
+/// `√g_net`: 0.97 for case study I's wind). For that wind (`c` = 0.58) both roots stay within
+/// 0.8 for `g_net` from 0.3 to 1.2.
+const DELAY_COMPENSATION: f64 = 0.5;
+
+/// Time constant of the mean angle increment (s).
+const ANGLE_MEAN_TAU: f64 = 0.02;
 
 /// The episodes of each limit (the `limit.*` outputs).
 #[derive(Clone, Default, Serialize, Deserialize)]
@@ -587,6 +604,8 @@ impl Der {
                     e_int: 0.0,
                     e: 0.0,
                     theta: 0.0,
+                    dtheta: 0.0,
+                    dtheta_mean: 0.0,
                 };
                 (Channel::Forming(Box::new(forming)), vq)
             }
@@ -1499,18 +1518,63 @@ impl Der {
                     _ => {}
                 }
                 // The controls see the power the internal voltage delivers: the measurement
-                // plus what the limits withheld.
+                // plus what the limits withheld. While a current or dc limit episode is on (the
+                // current-limited mode, left 1 s after the limit last acted) also the change of
+                // the limited power that the node's last move of angle makes and the measurement
+                // does not show yet: the measurement reflects the angle sent one communication
+                // step earlier, and through the direct feedthrough of T_pf/m (a low-pass unit's
+                // τ/(μ H)) that loop has a gain per step near 1 (2π f_nom h |D| (S_base/S_dvpp)
+                // E V/|Z| = 1.16 for case study I's wind at a fixed bus voltage; about 0.94
+                // through the network, from its ringing after case study I's load step, which
+                // decays by 0.97 per step). With the delay that is a 60°-per-step mode at the edge of
+                // stability, which the limiter, switching between limited and free from one step
+                // to the next, kept going. Half of the move's effect (`DELAY_COMPENSATION`),
+                // computed with the limiter at the measured bus voltage (nothing while the dc
+                // budget holds the power), keeps the loop damped over its range of gains. The
+                // grid frequency's share of the move (its mean over `ANGLE_MEAN_TAU`) moves the
+                // bus too and is left out. Below the limits nothing changes.
                 // Rotational control: both channels see p', q' and the set point rotated (the
                 // identity at rot.rx = 0).
-                let (p_fb, q_fb) = rt
-                    .rot
-                    .rotate(s[self.p] + rt.withheld.0, s[self.q] + rt.withheld.1);
+                let compensation = if rt.limit.current.active() || rt.limit.dc.active() {
+                    // The limited power at the measured bus voltage, from the node E∠θ.
+                    let (r, x) = self.slot_impedance(s);
+                    let z = Complex::new(r, x);
+                    let bus = Complex::from_polar(s[self.v], s[self.v_angle]);
+                    let u = if s[self.v] > limits::V_FLOOR {
+                        bus / s[self.v]
+                    } else {
+                        Complex::from_polar(1.0, f.theta)
+                    };
+                    let budget = rt.dc.ac_budget();
+                    let limited = |theta: f64| {
+                        let wanted = (Complex::from_polar(s[self.e], theta) - bus) / z;
+                        let i = limits::saturate_forming(
+                            wanted * to_rated,
+                            u,
+                            s[self.v],
+                            s[self.i_max],
+                            budget,
+                        )
+                        .current;
+                        (bus * (i / to_rated).conj()).re
+                    };
+                    let moved = f.dtheta - f.dtheta_mean;
+                    DELAY_COMPENSATION * (limited(f.theta) - limited(f.theta - moved))
+                } else {
+                    0.0
+                };
+                let (p_fb, q_fb) = rt.rot.rotate(
+                    s[self.p] + rt.withheld.0 + compensation,
+                    s[self.q] + rt.withheld.1,
+                );
                 let (p_set_rot, q_set_rot) = rt.rot.rotate(p_set, rt.q0);
                 let dp = (p_fb - p_set_rot) * to_dvpp;
                 s[self.p_ref] = p_set;
                 let (df, df_int) = f.pf.step_with_integral(dp, h);
                 s[self.df] = df;
-                f.theta += 2.0 * PI * s[self.f_nom] * df_int;
+                f.dtheta = 2.0 * PI * s[self.f_nom] * df_int;
+                f.theta += f.dtheta;
+                f.dtheta_mean += -(-h / ANGLE_MEAN_TAU).exp_m1() * (f.dtheta - f.dtheta_mean);
                 // PI matching controller on E: q tracks the reference held over the step.
                 // E within [0, E_max]; the integrator stops while the limit holds (anti-windup).
                 let e = rt.q_ref - q_fb;
@@ -1656,6 +1720,7 @@ impl Der {
         let p_ac = self.converter_power(s, r);
         let cap = s[self.p_avail] * to_rated;
         let dc = rt.dc.step(p_ac, h, cap);
+        rt.dc.update_reserve(rt.limit.dc.active(), cap);
         rt.limit.source.record(
             t + h,
             dc.source,

@@ -46,9 +46,10 @@ dl_api! {
     create_value_federate: "helicsCreateValueFederate" => fn(*const c_char, Handle, E) -> Handle;
     register_global_publication: "helicsFederateRegisterGlobalPublication" => fn(Handle, *const c_char, c_int, *const c_char, E) -> Handle;
     register_subscription: "helicsFederateRegisterSubscription" => fn(Handle, *const c_char, *const c_char, E) -> Handle;
-    input_set_default_double: "helicsInputSetDefaultDouble" => fn(Handle, f64, E);
     publish_double: "helicsPublicationPublishDouble" => fn(Handle, f64, E);
+    publish_vector: "helicsPublicationPublishVector" => fn(Handle, *const f64, c_int, E);
     input_get_double: "helicsInputGetDouble" => fn(Handle, E) -> f64;
+    input_get_vector: "helicsInputGetVector" => fn(Handle, *mut f64, c_int, *mut c_int, E);
     enter_executing_mode: "helicsFederateEnterExecutingMode" => fn(Handle, E);
     request_time: "helicsFederateRequestTime" => fn(Handle, f64, E) -> f64;
     finalize: "helicsFederateFinalize" => fn(Handle, E);
@@ -71,6 +72,7 @@ pub const JOIN_TIMEOUT: Duration = Duration::from_secs(20);
 /// How long the launcher waits for its broker to listen.
 const BROKER_TIMEOUT: Duration = Duration::from_secs(20);
 const HELICS_DATA_TYPE_DOUBLE: c_int = 1;
+const HELICS_DATA_TYPE_VECTOR: c_int = 4;
 const HELICS_FLAG_UNINTERRUPTIBLE: c_int = 1;
 
 impl Helics {
@@ -333,14 +335,39 @@ pub struct FederateReport {
     pub warnings: Vec<String>,
 }
 
+/// A component's outputs that other components read, as one HELICS vector named after the
+/// component: one message per component and round, however many values it carries (a message
+/// costs tens of µs on its way through the cores and the broker; the values cost nothing).
+struct Pack {
+    handle: Handle,
+    /// Position of each output slot in the vector.
+    at: BTreeMap<usize, usize>,
+    values: Vec<f64>,
+    /// Published this round (a publication) / read this round (an input).
+    touched: bool,
+}
+
+/// The outputs of each component that a component other than itself reads, in slot order:
+/// the same for every federate, whatever the grouping.
+fn packed_slots(sys: &System) -> BTreeMap<usize, BTreeMap<usize, usize>> {
+    let mut slots: BTreeMap<usize, std::collections::BTreeSet<usize>> = BTreeMap::new();
+    for l in sys.links.iter().filter(|l| l.src != l.dst) {
+        slots.entry(l.src).or_default().insert(l.slot);
+    }
+    slots
+        .into_iter()
+        .map(|(u, s)| (u, s.into_iter().enumerate().map(|(k, s)| (s, k)).collect()))
+        .collect()
+}
+
 /// The HELICS side of a running federate.
 struct Federate<'a> {
     h: &'a Helics,
     fed: Handle,
-    /// Publication of each output (unit, slot) read by another federate.
-    publications: BTreeMap<(usize, usize), Handle>,
-    /// Input of each remote output (unit, slot) this federate reads.
-    inputs: BTreeMap<(usize, usize), Handle>,
+    /// The vector of each own component that another federate reads.
+    publications: BTreeMap<usize, Pack>,
+    /// The vector of each remote component this federate reads.
+    inputs: BTreeMap<usize, Pack>,
     /// The change counts of initialization: own components' publications, others' inputs.
     changed_pub: BTreeMap<usize, Handle>,
     changed_in: BTreeMap<usize, Handle>,
@@ -369,6 +396,56 @@ impl Federate<'_> {
         }
         self.time = want;
         Ok(())
+    }
+
+    /// Publish the vectors of the components that produced values this round.
+    fn publish_packs(&mut self) -> Result<(), Error> {
+        let h = self.h;
+        for p in self.publications.values_mut().filter(|p| p.touched) {
+            p.touched = false;
+            // SAFETY: a live publication; `values` holds `len` doubles.
+            h.call("helicsPublicationPublishVector", |e| unsafe {
+                (h.api.publish_vector)(p.handle, p.values.as_ptr(), p.values.len() as c_int, e)
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Output `slot` of remote component `src` as granted this round (its vector read once).
+    fn take(&mut self, src: usize, slot: usize) -> Result<f64, Error> {
+        let h = self.h;
+        let p = self
+            .inputs
+            .get_mut(&src)
+            .ok_or_else(|| Error(format!("no input of component #{src}")))?;
+        if !p.touched {
+            let mut got: c_int = 0;
+            let want = p.values.len();
+            // SAFETY: a live input; `values` has room for `want` doubles.
+            h.call("helicsInputGetVector", |e| unsafe {
+                (h.api.input_get_vector)(
+                    p.handle,
+                    p.values.as_mut_ptr(),
+                    want as c_int,
+                    &mut got,
+                    e,
+                )
+            })?;
+            if got as usize != want {
+                return err(format!(
+                    "a vector of {got} values from component #{src}, {want} expected (is every federate of this system and version?)"
+                ));
+            }
+            p.touched = true;
+        }
+        Ok(p.values[p.at[&slot]])
+    }
+
+    /// A new round: every remote vector is read afresh.
+    fn untouch_inputs(&mut self) {
+        for p in self.inputs.values_mut() {
+            p.touched = false;
+        }
     }
 
     fn publish(&self, p: Handle, v: f64) -> Result<(), Error> {
@@ -473,11 +550,11 @@ impl Local {
             let take_part = phase == Phase::Init || sched.granted[j];
             if j > 0 && take_part {
                 fed.round(base + j as f64)?;
+                fed.untouch_inputs();
                 for &i in &sched.receive[j] {
                     let l = &self.system.links[i];
                     if self.mine[l.dst] && !self.mine[l.src] {
-                        let input = fed.inputs[&(l.src, l.slot)];
-                        self.buf[i] = fed.get(input)?;
+                        self.buf[i] = fed.take(l.src, l.slot)?;
                     }
                 }
             }
@@ -503,8 +580,9 @@ impl Local {
                         let raw = self.system.units[src].values[slot];
                         if self.mine[dst] {
                             self.buf[i] = raw;
-                        } else {
-                            fed.publish(fed.publications[&(src, slot)], raw)?;
+                        } else if let Some(p) = fed.publications.get_mut(&src) {
+                            p.values[p.at[&slot]] = raw;
+                            p.touched = true;
                         }
                     }
                     Event::Consume(i) => {
@@ -517,6 +595,7 @@ impl Local {
                     }
                 }
             }
+            fed.publish_packs()?;
         }
         let sys = &mut self.system;
         for (k, u) in sys.units.iter_mut().enumerate() {
@@ -624,39 +703,50 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
         time: 0.0,
         finalized: false,
     };
-    let key = |sys: &System, u: usize, slot: usize| {
-        let unit = &sys.units[u];
-        let md = &unit.inst.fmu().description;
-        let var = &md.model_variables.variables[unit.reads[slot].index as usize - 1].name;
-        format!("{}.{var}", unit.name)
-    };
-    for l in &local.system.links {
-        let (src, dst, slot) = (l.src, l.dst, l.slot);
-        if local.mine[src] && !local.mine[dst] && !fed.publications.contains_key(&(src, slot)) {
-            let k = cstring(&key(&local.system, src, slot))?;
-            // SAFETY: a live federate; key and units are C strings alive across the call.
-            let p = helics.call("register publication", |e| unsafe {
+    // One vector per component that another component reads (see [`Pack`]).
+    for (u, at) in packed_slots(&local.system) {
+        let name = cstring(&local.system.units[u].name)?;
+        let reads_it = |l: &crate::master::Link| l.src == u && local.mine[l.dst];
+        let mine = local.mine[u];
+        let wanted = if mine {
+            local
+                .system
+                .links
+                .iter()
+                .any(|l| l.src == u && !local.mine[l.dst])
+        } else {
+            local.system.links.iter().any(reads_it)
+        };
+        if !wanted {
+            continue;
+        }
+        let handle = if mine {
+            // SAFETY: a live federate; the name is a C string alive across the call.
+            helics.call("register publication", |e| unsafe {
                 (helics.api.register_global_publication)(
                     fed.fed,
-                    k.as_ptr(),
-                    HELICS_DATA_TYPE_DOUBLE,
+                    name.as_ptr(),
+                    HELICS_DATA_TYPE_VECTOR,
                     c"".as_ptr(),
                     e,
                 )
-            })?;
-            fed.publications.insert((src, slot), p);
-        }
-        if local.mine[dst] && !local.mine[src] && !fed.inputs.contains_key(&(src, slot)) {
-            let k = cstring(&key(&local.system, src, slot))?;
+            })?
+        } else {
             // SAFETY: as above.
-            let i = helics.call("register subscription", |e| unsafe {
-                (helics.api.register_subscription)(fed.fed, k.as_ptr(), c"".as_ptr(), e)
-            })?;
-            // SAFETY: a live input.
-            helics.call("set input default", |e| unsafe {
-                (helics.api.input_set_default_double)(i, 0.0, e)
-            })?;
-            fed.inputs.insert((src, slot), i);
+            helics.call("register subscription", |e| unsafe {
+                (helics.api.register_subscription)(fed.fed, name.as_ptr(), c"".as_ptr(), e)
+            })?
+        };
+        let pack = Pack {
+            handle,
+            values: vec![0.0; at.len()],
+            at,
+            touched: false,
+        };
+        if mine {
+            fed.publications.insert(u, pack);
+        } else {
+            fed.inputs.insert(u, pack);
         }
     }
     for (k, n) in names.iter().enumerate() {

@@ -455,6 +455,15 @@ fn demo() -> Result {
             started.elapsed().as_secs_f64(),
             csv.display()
         );
+        // The metrics find the DERs by their dc links: every unit of the scenario's.
+        let units = scenario::units(
+            &root()
+                .join("xtask")
+                .join("scenarios")
+                .join(format!("{name}.toml")),
+        )?;
+        dvpp_e2e::units_with(&recorder.table.columns, fmu_der::ports::V_DC, &units)
+            .map_err(|e| format!("{name}: {e}"))?;
         signals.push(Signals::of(&recorder.table).map_err(|e| format!("{name}: {e}"))?);
     }
     let (load, cloud) = (&signals[0], &signals[1]);

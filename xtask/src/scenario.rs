@@ -1237,9 +1237,9 @@ fn system(
     })
 }
 
-/// Bundle the scenario at `path` into `out_dir` and write `<name>.ssp` there.
-pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<PathBuf, String> {
-    let name = name_of(path)?;
+/// The scenario at `path` with its DERs as the system has them: each split into its
+/// grid-forming and grid-following parts by `[dvpp] eps`, and the fleets expanded.
+fn resolved(path: &Path) -> Result<Scenario, String> {
     let mut sc = Scenario::read(path)?;
     if let Some(eps) = sc.dvpp.as_ref().and_then(|d| d.eps) {
         if !(0.0..=1.0).contains(&eps) {
@@ -1259,6 +1259,18 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
     }
     sc.expand_fleets()
         .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(sc)
+}
+
+/// The DER units (component names) of the scenario at `path`, in the grid's slot order.
+pub fn units(path: &Path) -> Result<Vec<String>, String> {
+    Ok(resolved(path)?.der.into_iter().map(|d| d.name).collect())
+}
+
+/// Bundle the scenario at `path` into `out_dir` and write `<name>.ssp` there.
+pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<PathBuf, String> {
+    let name = name_of(path)?;
+    let sc = resolved(path)?;
     let member = sc
         .membership()
         .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -1712,6 +1724,30 @@ mod tests {
         ] {
             let e = bundle_error(&text);
             assert!(e.contains(expected), "expected '{expected}' in: {e}");
+        }
+    }
+
+    /// `units` (what the case-study checks expect) names the DER components of the compiled
+    /// system, in the grid's slot order, for every shipped scenario (none for `ieee9`).
+    #[test]
+    fn units_are_the_der_components_in_slot_order() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
+        files.sort();
+        assert!(files.len() > 10, "the shipped scenarios");
+        for path in files {
+            let (system, mds) = bundled(&path);
+            let ders: Vec<String> = system
+                .components
+                .iter()
+                .filter(|c| mds[&c.name].model_identifier() == Some("dvpp_der"))
+                .map(|c| c.name.clone())
+                .collect();
+            assert_eq!(units(&path).unwrap(), ders, "{}", path.display());
         }
     }
 }

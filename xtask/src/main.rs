@@ -83,8 +83,8 @@ tasks:
            figures in results/, figures in tests/figures/, metrics table into README.md; then
            case study III with its R/X Monte Carlo (as `case3`)
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
-           Rust tests (the win64 binaries under wine among them), then the Python (fmpy) tests
-           in target/venv
+           Rust tests (the win64 binaries under wine among them, required: DVPP_REQUIRE_WIN64=1
+           unless DVPP_WIN64=0), then the Python (fmpy) tests in target/venv
   sweep [--runs N] [--seed S]
            bundle, then run case study II (case2_load_eps000 ... eps100) on all cores: the 42 MW
            step per ε and N (default 40) seeded Monte Carlo load steps each; summary in
@@ -617,17 +617,22 @@ fn python_env() -> Result<PathBuf> {
 
 fn test() -> Result {
     let started = std::time::Instant::now();
-    win64::install_for_tests();
+    let win64_required = win64::install_for_tests();
     bundle(&[])?;
     let dist = root().join("dist").join("default");
     let cosim = cosim_binary()?;
     // The venv first: the federation test loads libhelics from it.
     let python = python_env()?;
-    run(cargo()
+    let mut tests = cargo();
+    tests
         .args(["test", "--workspace"])
         .env("DVPP_DIST", &dist)
         .env("DVPP_COSIM", &cosim)
-        .env("DVPP_REQUIRE_HELICS", "1"))?;
+        .env("DVPP_REQUIRE_HELICS", "1");
+    if win64_required {
+        tests.env(win64::REQUIRE, "1");
+    }
+    run(&mut tests)?;
     // The 300 s grid dynamics tests are ignored in debug builds; run them optimized.
     run(cargo().args([
         "test",

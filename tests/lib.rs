@@ -79,6 +79,8 @@ pub fn cosim() -> PathBuf {
         .join("cosim")
 }
 
+pub mod mutate;
+
 pub const IDS: [&str; 3] = ["dvpp_der", "dvpp_operator", "dvpp_grid"];
 
 /// The DER units of a system (`.ssp` or its directory): the components whose FMU is the DER FMU

@@ -1237,6 +1237,31 @@ fn system(
     })
 }
 
+/// A bundler that builds nothing: the model description of `b` described in process from its
+/// configuration (staged under `dir`), and an empty file in place of the FMU. Enough to compile a
+/// scenario into its system (the tests and `cargo xtask fuzz`), not to run it.
+pub fn described(dir: &Path, b: &Build) -> Result<ModelDescription, String> {
+    use fmi_export::{describe, Config};
+    let res = dir.join(&b.staging);
+    std::fs::create_dir_all(&res).map_err(|e| e.to_string())?;
+    std::fs::write(res.join(fmi_export::CONFIG_FILE), &b.config).map_err(|e| e.to_string())?;
+    for f in &b.files {
+        let name = f
+            .file_name()
+            .ok_or(format!("{}: not a file", f.display()))?;
+        std::fs::copy(f, res.join(name)).map_err(|e| format!("{}: {e}", f.display()))?;
+    }
+    let md = match b.package {
+        "fmu-grid" => describe::<fmu_grid::GridFmu>(&Config::load(&res)?, Some(&res)),
+        "fmu-der" => describe::<fmu_der::Der>(&Config::load(&res)?, Some(&res)),
+        "fmu-operator" => describe::<fmu_operator::Operator>(&Config::load(&res)?, Some(&res)),
+        p => Err(format!("unknown package {p}")),
+    }?;
+    // The system only needs the file to exist.
+    std::fs::write(&b.out, b"").map_err(|e| e.to_string())?;
+    Ok(md)
+}
+
 /// The scenario at `path` with its DERs as the system has them: each split into its
 /// grid-forming and grid-following parts by `[dvpp] eps`, and the fleets expanded.
 fn resolved(path: &Path) -> Result<Scenario, String> {
@@ -1363,7 +1388,6 @@ fn component(name: &str, md: &ModelDescription, start: &Table) -> Result<ssp::Co
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmi_export::{describe, Config};
     use std::collections::BTreeMap;
 
     /// Bundle `scenario` with the FMUs described in process instead of built: the system, and
@@ -1382,23 +1406,7 @@ mod tests {
         let _ = std::fs::remove_dir_all(&dir);
         let mut mds = BTreeMap::new();
         let mut one = |b: &Build| -> Result<ModelDescription, String> {
-            let res = dir.join(&b.staging);
-            std::fs::create_dir_all(&res).map_err(|e| e.to_string())?;
-            std::fs::write(res.join(fmi_export::CONFIG_FILE), &b.config)
-                .map_err(|e| e.to_string())?;
-            for f in &b.files {
-                std::fs::copy(f, res.join(f.file_name().unwrap())).map_err(|e| e.to_string())?;
-            }
-            let md = match b.package {
-                "fmu-grid" => describe::<fmu_grid::GridFmu>(&Config::load(&res)?, Some(&res)),
-                "fmu-der" => describe::<fmu_der::Der>(&Config::load(&res)?, Some(&res)),
-                "fmu-operator" => {
-                    describe::<fmu_operator::Operator>(&Config::load(&res)?, Some(&res))
-                }
-                p => Err(format!("unknown package {p}")),
-            }?;
-            // The system only needs the file to exist.
-            std::fs::write(&b.out, b"").map_err(|e| e.to_string())?;
+            let md = described(&dir, b)?;
             let component = b.out.file_stem().unwrap().to_string_lossy().into_owned();
             mds.insert(component, md.clone());
             Ok(md)

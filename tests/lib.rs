@@ -79,7 +79,65 @@ pub fn cosim() -> PathBuf {
         .join("cosim")
 }
 
+pub mod mutate;
+
 pub const IDS: [&str; 3] = ["dvpp_der", "dvpp_operator", "dvpp_grid"];
+
+/// The DER units of a system (`.ssp` or its directory): the components whose FMU is the DER FMU
+/// (model identifier `dvpp_der`), in the order of the SSD (the grid's slot order).
+pub fn der_units(system: &Path) -> Result<Vec<String>, String> {
+    use std::io::Read;
+    let pkg = dvpp_cosim::ssp::read(system).map_err(|e| e.to_string())?;
+    let mut units = Vec::new();
+    for c in &pkg.system.components {
+        let path = pkg.source_path(c);
+        let at = |e: String| format!("{}: {e}", path.display());
+        let file = std::fs::File::open(&path).map_err(|e| at(e.to_string()))?;
+        let mut zip = zip::ZipArchive::new(file).map_err(|e| at(e.to_string()))?;
+        let mut xml = String::new();
+        zip.by_name("modelDescription.xml")
+            .map_err(|e| at(e.to_string()))?
+            .read_to_string(&mut xml)
+            .map_err(|e| at(e.to_string()))?;
+        let md =
+            model_description::ModelDescription::from_xml(&xml).map_err(|e| at(e.to_string()))?;
+        if md.model_identifier() == Some(IDS[0]) {
+            units.push(c.name.clone());
+        }
+    }
+    Ok(units)
+}
+
+/// Check that `columns` has `<unit>.<port>` for exactly the units `expected` (each once, no
+/// other), and return them in the order of `expected` (the grid's slot order): a renamed port or
+/// a unit without it is an error naming what is missing, never an empty list.
+pub fn units_with(
+    columns: &[String],
+    port: &str,
+    expected: &[String],
+) -> Result<Vec<String>, String> {
+    let suffix = format!(".{port}");
+    let found: Vec<String> = columns
+        .iter()
+        .filter_map(|c| c.strip_suffix(suffix.as_str()))
+        .map(str::to_owned)
+        .collect();
+    let missing: Vec<&String> = expected.iter().filter(|u| !found.contains(u)).collect();
+    let extra: Vec<&String> = found.iter().filter(|u| !expected.contains(u)).collect();
+    if expected.is_empty() {
+        return Err(format!(
+            "no units expected with a column '*{suffix}': the system has no DER"
+        ));
+    }
+    if !missing.is_empty() || !extra.is_empty() || found.len() != expected.len() {
+        return Err(format!(
+            "the columns '<unit>{suffix}' do not match the {} DER units: missing {missing:?}, unexpected {extra:?} (found {})",
+            expected.len(),
+            found.len()
+        ));
+    }
+    Ok(expected.to_vec())
+}
 
 /// Path of a bundled FMU.
 pub fn fmu_path(id: &str) -> PathBuf {
@@ -229,5 +287,24 @@ pub mod foreign {
             .collect();
         write_zip(&ssp, &entries);
         (dir, ssp)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::units_with;
+
+    #[test]
+    fn units_with_fails_on_a_renamed_port_or_a_missing_unit() {
+        let units: Vec<String> = ["wind", "pv"].map(String::from).to_vec();
+        let columns: Vec<String> = ["time", "wind.i_ac", "pv.i_ac", "pv.v_dc"]
+            .map(String::from)
+            .to_vec();
+        assert_eq!(units_with(&columns, "i_ac", &units), Ok(units.clone()));
+        let renamed = units_with(&columns, "i_ac_pu", &units).unwrap_err();
+        assert!(renamed.contains("missing [\"wind\", \"pv\"]"), "{renamed}");
+        let missing = units_with(&columns, "v_dc", &units).unwrap_err();
+        assert!(missing.contains("missing [\"wind\"]"), "{missing}");
+        assert!(units_with(&columns, "i_ac", &[]).is_err());
     }
 }

@@ -1030,7 +1030,13 @@ fn parse_ssd_labelled(xml: &str, dir: &Path, file: &str) -> Result<System, Error
         match (ns, local) {
             (Ns::Ssd, "System") if system_node.is_none() => system_node = Some(c),
             (Ns::Ssd, "System") => return Err(d.err(c, "more than one system")),
-            (Ns::Ssd, "DefaultExperiment") => experiment = Some(c),
+            (Ns::Ssd, "DefaultExperiment") if experiment.is_none() => experiment = Some(c),
+            (Ns::Ssd, "DefaultExperiment") => {
+                return Err(d.err(
+                    c,
+                    "a second <ssd:DefaultExperiment> (one experiment per system)",
+                ))
+            }
             (Ns::Ssd, "Enumerations" | "Units" | "Annotations") => {}
             _ => return Err(d.unexpected(c, &root)),
         }

@@ -1318,11 +1318,11 @@ impl Model for Der {
                 "pu",
                 "available active power of the primary source, on S_base",
             )),
-            v_dc: v.real(Spec::output("v_dc", "pu", "dc-link voltage")),
+            v_dc: v.real(Spec::output(ports::V_DC, "pu", "dc-link voltage")),
             p_dc: out(v, "p_dc", "pu", "power of the dc source, on S_base"),
             i_ac: out(
                 v,
-                "i_ac",
+                ports::I_AC,
                 "pu",
                 "magnitude of the ac current at the terminal, pu of the rated current",
             ),
@@ -1342,22 +1342,22 @@ impl Model for Der {
                 "grid-forming: highest active power at the terminal the dc link can give now, on S_base (for the grid's slot)",
             )),
             e_src: v.real(Spec::output(
-                "energy.source",
+                ports::ENERGY_SOURCE,
                 "MJ",
                 "energy the primary source delivered since initialization",
             )),
             e_ac: v.real(Spec::output(
-                "energy.ac",
+                ports::ENERGY_AC,
                 "MJ",
                 "energy the ac side drew from the dc link since initialization (terminal power and, grid-forming, the R_f loss)",
             )),
             e_loss: v.real(Spec::output(
-                "energy.loss",
+                ports::ENERGY_LOSS,
                 "MJ",
                 "energy lost in the dc link (G_dc) since initialization",
             )),
             w_dc: v.real(Spec::output(
-                "energy.stored",
+                ports::ENERGY_STORED,
                 "MJ",
                 "energy stored in the dc link, C_dc v_dc^2 / 2 (source - ac - loss = change of this)",
             )),
@@ -1378,7 +1378,7 @@ impl Model for Der {
                 "grid-forming: the imposed voltage is cut to E_max * v_dc",
             )),
             synchronized: v.boolean(Spec::boolean_output(
-                "synchronized",
+                ports::SYNCHRONIZED,
                 "the unit is synchronized (false while it waits for the terminal voltage after a start from zero voltage, and for a grid-following unit that lost its terminal voltage)",
             )),
             // Declared last, so the variables above keep their value references.

@@ -36,6 +36,21 @@ pub const P_ROT: &str = "p_rot";
 /// Output: the measured rotated reactive power `q'`.
 pub const Q_ROT: &str = "q_rot";
 
+/// Output: magnitude of the ac current at the terminal, pu of the rated current.
+pub const I_AC: &str = "i_ac";
+/// Output: dc-link voltage.
+pub const V_DC: &str = "v_dc";
+/// Output: the unit is synchronized.
+pub const SYNCHRONIZED: &str = "synchronized";
+/// Output: energy the primary source delivered since initialization.
+pub const ENERGY_SOURCE: &str = "energy.source";
+/// Output: energy the ac side drew from the dc link since initialization.
+pub const ENERGY_AC: &str = "energy.ac";
+/// Output: energy lost in the dc link since initialization.
+pub const ENERGY_LOSS: &str = "energy.loss";
+/// Output: energy stored in the dc link.
+pub const ENERGY_STORED: &str = "energy.stored";
+
 /// Output: the current limit, for the grid's slot.
 pub const I_LIMIT: &str = "i_limit";
 /// Output: lowest active power the dc link can take, for the grid's slot.

@@ -4,13 +4,19 @@
 //! where the PV's primary source runs out of reserve.
 
 use dvpp_cosim::master::{self, Options};
-use dvpp_e2e::scenario;
+use dvpp_e2e::{der_units, scenario, units_with};
 use dvpp_report::casestudy::{max_gap, peak, Signals};
+use fmu_der::ports;
 
 fn run(name: &str) -> (Signals, dvpp_cosim::Table) {
     let table =
         master::simulate(&scenario(name), &Options::default()).unwrap_or_else(|e| panic!("{e}"));
     let signals = Signals::of(&table).unwrap_or_else(|e| panic!("{name}: {e}"));
+    // The metrics find the DERs by their `v_dc` columns: all of the scenario's, in slot order.
+    let units = der_units(&scenario(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    units_with(&table.columns, ports::V_DC, &units).unwrap_or_else(|e| panic!("{name}: {e}"));
+    let found: Vec<&str> = signals.der.iter().map(|d| d.name.as_str()).collect();
+    assert_eq!(found, units, "{name}: the DERs of the metrics");
     (signals, table)
 }
 

@@ -7,13 +7,20 @@
 
 use dvpp_cosim::master::{self, Options};
 use dvpp_cosim::Table;
-use dvpp_e2e::scenario;
+use dvpp_e2e::{der_units, scenario, units_with};
 use dvpp_report::casestudy::Signals;
+use fmu_der::ports;
 
 const EPS: [&str; 5] = ["000", "025", "050", "075", "100"];
 
 fn column(t: &Table, name: &str) -> Vec<f64> {
     t.column(name).unwrap_or_else(|| panic!("no column {name}"))
+}
+
+/// The DER units of scenario `name`, each checked to have a column `<unit>.<port>` in `t`.
+fn units_of(name: &str, t: &Table, port: &str) -> Vec<String> {
+    let expected = der_units(&scenario(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    units_with(&t.columns, port, &expected).unwrap_or_else(|e| panic!("{name}: {e}"))
 }
 
 /// The largest second difference `|x[k+1] - 2 x[k] + x[k-1]|` from sample `from` on.
@@ -32,7 +39,11 @@ fn every_grid_forming_share_matches_t_des_without_step_to_step_oscillation() {
         let name = format!("case2_load_eps{eps}");
         let t = master::simulate(&scenario(&name), &Options::default())
             .unwrap_or_else(|e| panic!("{name}: {e}"));
-        let m = Signals::of(&t).unwrap_or_else(|e| panic!("{e}")).metrics();
+        let signals = Signals::of(&t).unwrap_or_else(|e| panic!("{e}"));
+        let units = units_of(&name, &t, ports::I_AC);
+        let found: Vec<&str> = signals.der.iter().map(|d| d.name.as_str()).collect();
+        assert_eq!(found, units, "{name}: the DERs of the metrics");
+        let m = signals.metrics();
         let time = column(&t, "time");
         let coi = column(&t, "grid.coi.f");
         let k = |s: f64| time.partition_point(|&x| x < s - 1e-9);
@@ -44,6 +55,13 @@ fn every_grid_forming_share_matches_t_des_without_step_to_step_oscillation() {
             worst = worst.max(jitter(&p, k(3.0)));
             slot += 1;
         }
+        assert_eq!(
+            slot - 1,
+            der_units(&scenario(&name))
+                .unwrap_or_else(|e| panic!("{e}"))
+                .len(),
+            "{name}: a grid slot 'grid.der[k].p' per DER unit"
+        );
         println!(
             "{name}: f NRMSE {:.2} %, v NRMSE {:.1} %, COI RoCoF (100 ms) {r:.4} Hz/s, largest second difference of a slot's p after 3 s {worst:.1e} pu",
             m.f_nrmse * 100.0,
@@ -51,20 +69,20 @@ fn every_grid_forming_share_matches_t_des_without_step_to_step_oscillation() {
         );
         assert!(m.f_nrmse <= 0.05, "{name}: f NRMSE {}", m.f_nrmse);
         assert!(worst < 1e-3, "{name}: step-to-step oscillation {worst}");
-        for c in t.columns.iter().filter(|c| c.ends_with(".i_ac")) {
-            let unit = c.trim_end_matches(".i_ac");
-            let (i, lim) = (column(&t, c), column(&t, &format!("{unit}.i_limit")));
+        for unit in &units {
+            let port = |p: &str| column(&t, &format!("{unit}.{p}"));
+            let (i, lim) = (port(ports::I_AC), port(ports::I_LIMIT));
             let ratio = i.iter().zip(&lim).map(|(a, b)| a / b).fold(0.0, f64::max);
             assert!(ratio <= 1.05, "{name} {unit}: current {ratio} x I_max");
-            let v_dc = column(&t, &format!("{unit}.v_dc"));
+            let v_dc = port(ports::V_DC);
             assert!(
                 v_dc.iter().all(|v| (0.79..=1.21).contains(v)),
                 "{name} {unit}: v_dc left its range"
             );
-            let last = |v: &str| *column(&t, &format!("{unit}.{v}")).last().unwrap();
-            let w0 = column(&t, &format!("{unit}.energy.stored"))[0];
-            let (src, ac) = (last("energy.source"), last("energy.ac"));
-            let residual = src - ac - last("energy.loss") - (last("energy.stored") - w0);
+            let last = |v: &str| *port(v).last().unwrap();
+            let w0 = port(ports::ENERGY_STORED)[0];
+            let (src, ac) = (last(ports::ENERGY_SOURCE), last(ports::ENERGY_AC));
+            let residual = src - ac - last(ports::ENERGY_LOSS) - (last(ports::ENERGY_STORED) - w0);
             assert!(
                 residual.abs() <= 1e-6 * (src.abs() + ac.abs()),
                 "{name} {unit}: energy residual {residual}"
@@ -103,16 +121,12 @@ fn the_outage_settles_with_grid_forming_units_and_loses_synchronism_without() {
         );
         let after = time.partition_point(|&x| x < 1.0);
         let energized = column(&t, "grid.energized");
-        let units: Vec<String> = t
-            .columns
-            .iter()
-            .filter_map(|c| c.strip_suffix(".i_ac"))
-            .map(str::to_owned)
-            .collect();
+        let units = units_of(&name, &t, ports::I_AC);
+        units_of(&name, &t, ports::SYNCHRONIZED);
         let lost: Vec<&String> = units
             .iter()
             .filter(|u| {
-                column(&t, &format!("{u}.synchronized"))[after..]
+                column(&t, &format!("{u}.{}", ports::SYNCHRONIZED))[after..]
                     .iter()
                     .any(|&s| s < 0.5)
             })
@@ -120,8 +134,8 @@ fn the_outage_settles_with_grid_forming_units_and_loses_synchronism_without() {
         let mut worst = 0.0_f64;
         for u in &units {
             let (i, lim) = (
-                column(&t, &format!("{u}.i_ac")),
-                column(&t, &format!("{u}.i_limit")),
+                column(&t, &format!("{u}.{}", ports::I_AC)),
+                column(&t, &format!("{u}.{}", ports::I_LIMIT)),
             );
             let ratio = i.iter().zip(&lim).map(|(a, b)| a / b).fold(0.0, f64::max);
             assert!(ratio <= 1.0 + 1e-6, "{name} {u}: current {ratio} x I_max");

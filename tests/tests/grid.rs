@@ -22,14 +22,28 @@ fn variant(name: &str) -> Arc<Fmu> {
     Arc::new(Fmu::load(&p).unwrap_or_else(|e| panic!("{e}")))
 }
 
-/// Value references of every variable whose name starts with `prefix` and ends with `suffix`.
-fn vrs_like(fmu: &Fmu, prefix: &str, suffix: &str) -> Vec<u32> {
-    fmu.description
-        .model_variables
-        .variables
-        .iter()
-        .filter(|v| v.name.starts_with(prefix) && v.name.ends_with(suffix))
-        .map(|v| v.value_reference)
+/// The case the grid FMU was built from (its `resources/config.toml`).
+fn case_of(fmu: &Fmu) -> fmu_grid::case::Case {
+    let resources = fmu.dir.join("resources");
+    fmi_export::Config::<fmu_grid::GridConfig>::load(&resources)
+        .and_then(|c| c.model.load_case(Some(&resources)))
+        .unwrap_or_else(|e| panic!("{}: {e}", fmu.description.model_name))
+}
+
+/// Value references of `<group>[k].<port>` for k = 1 … `n` (the count the case gives), checked
+/// to be all there and no more: a renamed port fails here instead of giving a short or empty list.
+fn indexed(fmu: &Fmu, group: &str, port: &str, n: usize) -> Vec<u32> {
+    let name = |k: usize| format!("{group}[{k}].{port}");
+    assert!(
+        fmu.vr(&name(n + 1)).is_err(),
+        "the case has {n} {group}[k] but the FMU has {}",
+        name(n + 1)
+    );
+    (1..=n)
+        .map(|k| {
+            fmu.vr(&name(k))
+                .unwrap_or_else(|e| panic!("{} of {n} is missing: {e}", name(k)))
+        })
         .collect()
 }
 
@@ -47,7 +61,7 @@ fn get(i: &mut Instance, vrs: &[u32]) -> Vec<f64> {
 /// Instantiate with every scheduled event switched `on` or off, and enter initialization mode.
 fn in_init_mode(fmu: &Arc<Fmu>, name: &str, events_on: bool) -> Instance {
     let mut i = fmu.instantiate(name).unwrap_or_else(|e| panic!("{e}"));
-    let enabled = vrs_like(fmu, "event[", ".enabled");
+    let enabled = indexed(fmu, "event", "enabled", case_of(fmu).events.len());
     assert_eq!(
         i.set_boolean(&enabled, &vec![events_on; enabled.len()]),
         Status::Ok
@@ -95,9 +109,15 @@ fn flat_start(fmu: &Arc<Fmu>, label: &str) {
     let mut i = in_init_mode(fmu, label, false);
     assert_eq!(i.exit_initialization_mode(), Status::Ok);
     let mut freqs = vec![fmu.vr("coi.f").unwrap(), fmu.vr("pcc.f").unwrap()];
-    freqs.extend(vrs_like(fmu, "sg[", ".omega"));
+    let case = case_of(fmu);
+    freqs.extend(indexed(fmu, "sg", "omega", case.machines.len()));
     let mismatch = fmu.vr("sys.p_mismatch").unwrap();
-    let powers = vrs_like(fmu, "der[", ".p");
+    let powers: Vec<u32> = (1..=case.ders.len())
+        .map(|k| {
+            fmu.vr(&fmu_grid::ports::der_p(k))
+                .unwrap_or_else(|e| panic!("{label}: {e}"))
+        })
+        .collect();
     let p0 = get(&mut i, &powers);
     let (h, n) = (1e-3, 10_000);
     let (mut worst_f, mut worst_b) = (0.0f64, 0.0f64);
@@ -142,8 +162,7 @@ fn load_step_28_mw_at_bus_5_of_ieee9() {
     let vr = |n: &str| fmu.vr(n).unwrap();
     assert_eq!(get(&mut i, &[vr("event[1].dP")])[0], 0.28);
     assert_eq!(i.exit_initialization_mode(), Status::Ok);
-    let sg_p = vrs_like(&fmu, "sg[", ".p");
-    assert_eq!(sg_p.len(), 3);
+    let sg_p = indexed(&fmu, "sg", "p", 3);
     let (coi, mismatch) = (vr("coi.f"), vr("sys.p_mismatch"));
     let pe0: f64 = get(&mut i, &sg_p).iter().sum();
     let (h, t_event, t_end) = (0.01, 1.0, 300.0);

@@ -5,7 +5,8 @@
 
 use dvpp_cosim::master::{self, Options, Recorder};
 use dvpp_cosim::Table;
-use dvpp_e2e::scenario;
+use dvpp_e2e::{der_units, scenario, units_with};
+use fmu_der::ports;
 
 const UNITS: [&str; 3] = ["wind", "pv", "bess"];
 
@@ -23,21 +24,31 @@ fn run(name: &str) -> (Table, Result<master::Outcome, master::Error>) {
 /// Per unit: the largest current over its limit, the dc-link range, and the energy residual
 /// `source - ac - loss - Δstored` relative to the energy moved.
 fn check_units(name: &str, t: &Table) {
+    let units = der_units(&scenario(name)).unwrap_or_else(|e| panic!("{name}: {e}"));
+    assert_eq!(units, UNITS, "{name}: the scenario's DER units");
+    for port in [
+        ports::I_AC,
+        ports::I_LIMIT,
+        ports::V_DC,
+        ports::ENERGY_STORED,
+    ] {
+        units_with(&t.columns, port, &units).unwrap_or_else(|e| panic!("{name}: {e}"));
+    }
     for u in UNITS {
         let c = |v: &str| column(t, &format!("{u}.{v}"));
-        let (i, limit) = (c("i_ac"), c("i_limit"));
+        let (i, limit) = (c(ports::I_AC), c(ports::I_LIMIT));
         let ratio = i.iter().zip(&limit).map(|(i, l)| i / l).fold(0.0, f64::max);
-        let v_dc = c("v_dc");
+        let v_dc = c(ports::V_DC);
         let (lo, hi) = v_dc
             .iter()
             .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
         let last = |v: &str| *c(v).last().expect("rows");
-        let w0 = c("energy.stored")[0];
+        let w0 = c(ports::ENERGY_STORED)[0];
         let (src, ac, loss, w) = (
-            last("energy.source"),
-            last("energy.ac"),
-            last("energy.loss"),
-            last("energy.stored"),
+            last(ports::ENERGY_SOURCE),
+            last(ports::ENERGY_AC),
+            last(ports::ENERGY_LOSS),
+            last(ports::ENERGY_STORED),
         );
         let residual = (src - ac - loss - (w - w0)) / (src.abs() + ac.abs());
         println!(

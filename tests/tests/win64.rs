@@ -17,6 +17,18 @@ fn say(line: &str) {
     let _ = writeln!(std::io::stderr(), "{line}");
 }
 
+/// Set by `cargo xtask test` (which installs wine and mingw-w64 and bundles the win64 binaries):
+/// then anything missing fails the test instead of skipping it.
+const REQUIRE: &str = "DVPP_REQUIRE_WIN64";
+
+/// Skip the test, printing `reason`; or, with [`REQUIRE`] set, fail with it.
+fn skip(reason: &str) {
+    if std::env::var_os(REQUIRE).is_some_and(|v| !v.is_empty() && v != "0") {
+        panic!("{REQUIRE} is set: {reason}");
+    }
+    say(&format!("win64 test skipped: {reason}"));
+}
+
 /// Whether `program --version` runs.
 fn runs(program: &str) -> bool {
     Command::new(program)
@@ -138,12 +150,12 @@ fn rows(cmd: &mut Command, what: &str) -> Vec<Vec<f64>> {
 #[test]
 fn win64_binaries_under_wine_match_linux64() {
     let Some(wine) = wine() else {
-        say("win64 test skipped: no wine (apt-get install wine64; `cargo xtask test` installs it)");
+        skip("no wine (apt-get install wine64; `cargo xtask test` installs it)");
         return;
     };
     if !runs(MINGW) {
-        say(&format!(
-            "win64 test skipped: no {MINGW} to build the test master (apt-get install \
+        skip(&format!(
+            "no {MINGW} to build the test master (apt-get install \
              gcc-mingw-w64-x86-64-win32; `cargo xtask test` installs it)"
         ));
         return;
@@ -158,8 +170,8 @@ fn win64_binaries_under_wine_match_linux64() {
             .unwrap_or_else(|e| panic!("{}: {e} (run `cargo xtask bundle`)", path.display()));
         let mut zip = zip::ZipArchive::new(file).expect("an FMU is a zip archive");
         if zip.by_name(&format!("binaries/win64/{id}.dll")).is_err() {
-            say(&format!(
-                "win64 test skipped: {} has no binaries/win64/{id}.dll (bundled without the \
+            skip(&format!(
+                "{} has no binaries/win64/{id}.dll (bundled without the \
                  x86_64-pc-windows-gnu target or mingw-w64; see `cargo xtask bundle`'s output)",
                 path.display()
             ));

@@ -12,6 +12,8 @@ use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::nrmse;
 use dvpp_report::plot::{Figure, Panel, Style};
+use fmu_der::ports;
+use fmu_grid::ports as grid_ports;
 use std::path::Path;
 use std::sync::Mutex;
 
@@ -45,6 +47,8 @@ struct Run {
     dp_pocs_mw: f64,
     /// t, then per POC its Δf (Hz), then the desired Δf (Hz).
     series: Vec<Vec<f64>>,
+    /// The scenario's DER units, in slot order.
+    expected: Vec<String>,
     /// Per unit: name, Δp, Δq, Δp' (MW, Mvar).
     units: Vec<(String, [Vec<f64>; 3])>,
     error: Option<String>,
@@ -80,17 +84,12 @@ fn measure(run: &mut Run, t: &Table) -> Result<(), String> {
     series.push(df_ref.iter().map(|x| x * F_NOM_HZ).collect());
     run.series = series;
     run.dp_pocs_mw = dp_pocs;
-    let names: Vec<String> = t
-        .columns
-        .iter()
-        .filter_map(|c| c.strip_suffix(".p_rot"))
-        .map(str::to_owned)
-        .collect();
+    let names = dvpp_e2e::units_with(&t.columns, ports::P_ROT, &run.expected)?;
     let mut dp_units = 0.0;
     for (slot, u) in names.iter().enumerate() {
-        let p = column(t, &format!("grid.der[{}].p", slot + 1))?;
-        let q = column(t, &format!("grid.der[{}].q", slot + 1))?;
-        let p_rot = column(t, &format!("{u}.p_rot"))?;
+        let p = column(t, &format!("grid.{}", grid_ports::der_p(slot + 1)))?;
+        let q = column(t, &format!("grid.{}", grid_ports::der_q(slot + 1)))?;
+        let p_rot = column(t, &format!("{u}.{}", ports::P_ROT))?;
         dp_units += (p[p.len() - 1] - p[0]) * 100.0;
         run.units.push((
             u.clone(),
@@ -382,6 +381,12 @@ pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
     for (name, _, _) in NOMINAL {
         let path = dist.join(name).join(format!("{name}.ssp"));
         let pkg = ssp::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+        let expected = crate::scenario::units(
+            &root
+                .join("xtask")
+                .join("scenarios")
+                .join(format!("{name}.toml")),
+        )?;
         if DRAWN.contains(&name) {
             if rx_draws.is_empty() {
                 let lines = mv_lines(&pkg)?;
@@ -406,6 +411,7 @@ pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
                         scenario: name.into(),
                         draw: d + 1,
                         rx: rx.clone(),
+                        expected: expected.clone(),
                         ..Run::default()
                     },
                 ));
@@ -415,6 +421,7 @@ pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
             pkg.with_system(pkg.system.clone()),
             Run {
                 scenario: name.into(),
+                expected,
                 ..Run::default()
             },
         ));

@@ -4,6 +4,7 @@ mod case3;
 mod catalog;
 mod docs;
 mod federation;
+mod fuzz;
 mod outage;
 mod scenario;
 mod sweep;
@@ -86,8 +87,9 @@ tasks:
            figures in results/, figures in tests/figures/, metrics table into README.md; then
            case study III with its R/X Monte Carlo (as `case3`)
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
-           Rust tests (the win64 binaries under wine among them), then the Python (fmpy) tests
-           in target/venv
+           Rust tests (the win64 binaries under wine among them, required: DVPP_REQUIRE_WIN64=1
+           unless DVPP_WIN64=0), the short fuzz (`fuzz --cases 300 --seed 1`), then the Python
+           (fmpy) tests in target/venv
   sweep [--runs N] [--seed S]
            bundle, then run case study II (case2_load_eps000 ... eps100) on all cores: the 42 MW
            step per ε and N (default 40) seeded Monte Carlo load steps each; summary in
@@ -99,6 +101,17 @@ tasks:
            case3_rx_envelope.svg
   outage   bundle, then run case study II's outage of SG1 and SG3 (case2_outage_eps000 ...
            eps100): a verdict per ε in results/case2_outage.csv, tests/figures/case2_outage.svg
+  fuzz [--cases N] [--seed S] [--jobs J] [--first K]
+           bundle the FMUs and case1_load, then run N (default 10000) seeded cases, in turn: a
+           variant of case1_load's SSD run by the `cosim` binary, a variant of a shipped
+           scenario file compiled by the scenario compiler, a random sequence of FMI calls
+           (wrong order, NaN, infinite and denormal values, unknown references, forged
+           serialized states) on a bundled FMU through its C API; each in a child process with
+           a 20 s timeout and 2 GiB of address space; prints the count per class (refused,
+           same, different: good; silent acceptance, contained FMU panic, out of memory,
+           panic, crash, hang, unclear refusal: bad) and the first bad cases of each kind,
+           and fails if there is one; J cases at a time (default 1); `--first K --cases 1`
+           re-runs case K alone
   docs     regenerate README.md's variable tables from the FMUs' model descriptions";
 
 fn main() -> ExitCode {
@@ -120,6 +133,21 @@ fn main() -> ExitCode {
         Some("outage") => bundle(&[]).and_then(|_| outage::outage(&root()).map(|_| ())),
         Some("bench") => bench(),
         Some("test") => test(),
+        // The default FMUs and case1_load only: the scenario cases compile, not bundle.
+        Some("fuzz") => bundle(&FMUS.iter().map(|f| f.id.to_string()).collect::<Vec<_>>())
+            .and_then(|_| {
+                bundle_scenario(
+                    &root()
+                        .join("xtask")
+                        .join("scenarios")
+                        .join("case1_load.toml"),
+                )
+            })
+            .and_then(|_| cosim_binary())
+            .and_then(|cosim| fuzz::fuzz(&root(), &target_dir(), &cosim, &args[1..])),
+        // The children of `fuzz` (not for direct use).
+        Some("fuzz-compile") => return fuzz::compile_child(&args[1..]),
+        Some("fuzz-fmi") => return fuzz::fmi_child(&args[1..]),
         Some("docs") => write_docs(),
         _ => Err(USAGE.into()),
     };
@@ -473,6 +501,15 @@ fn demo() -> Result {
             started.elapsed().as_secs_f64(),
             csv.display()
         );
+        // The metrics find the DERs by their dc links: every unit of the scenario's.
+        let units = scenario::units(
+            &root()
+                .join("xtask")
+                .join("scenarios")
+                .join(format!("{name}.toml")),
+        )?;
+        dvpp_e2e::units_with(&recorder.inner.table.columns, fmu_der::ports::V_DC, &units)
+            .map_err(|e| format!("{name}: {e}"))?;
         signals.push(Signals::of(&recorder.inner.table).map_err(|e| format!("{name}: {e}"))?);
     }
     let (load, cloud) = (&signals[0], &signals[1]);
@@ -626,17 +663,35 @@ fn python_env() -> Result<PathBuf> {
 
 fn test() -> Result {
     let started = std::time::Instant::now();
-    win64::install_for_tests();
+    let win64_required = win64::install_for_tests();
     bundle(&[])?;
     let dist = root().join("dist").join("default");
     let cosim = cosim_binary()?;
     // The venv first: the federation test loads libhelics from it.
     let python = python_env()?;
-    run(cargo()
+    let mut tests = cargo();
+    tests
         .args(["test", "--workspace"])
         .env("DVPP_DIST", &dist)
         .env("DVPP_COSIM", &cosim)
-        .env("DVPP_REQUIRE_HELICS", "1"))?;
+        .env("DVPP_REQUIRE_HELICS", "1");
+    if win64_required {
+        tests.env(win64::REQUIRE, "1");
+    }
+    run(&mut tests)?;
+    // The short form of the fuzzer: a fixed seed, a few hundred cases.
+    let (cases, seed) = fuzz::SHORT;
+    fuzz::fuzz(
+        &root(),
+        &target_dir(),
+        &cosim,
+        &[
+            "--cases".into(),
+            cases.to_string(),
+            "--seed".into(),
+            seed.to_string(),
+        ],
+    )?;
     // The 300 s grid dynamics tests are ignored in debug builds; run them optimized.
     run(cargo().args([
         "test",

@@ -6,6 +6,7 @@ use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
 use dvpp_report::plot::{Figure, Panel, Style};
+use fmu_der::ports;
 use std::path::Path;
 
 use crate::sweep::EPS;
@@ -80,7 +81,7 @@ fn column(t: &Table, name: &str) -> Result<Vec<f64>, String> {
 }
 
 /// The verdict of one completed run.
-fn judge(eps: u32, t: &Table) -> Result<Verdict, String> {
+fn judge(eps: u32, t: &Table, expected: &[String]) -> Result<Verdict, String> {
     let time = column(t, "time")?;
     let after = time.partition_point(|&x| x < T_TRIP);
     let f = column(t, "grid.pcc.f")?;
@@ -91,28 +92,25 @@ fn judge(eps: u32, t: &Table) -> Result<Verdict, String> {
     let deenergized_at = (after..time.len())
         .find(|&k| energized[k] < 0.5)
         .map(|k| time[k]);
-    let units: Vec<String> = t
-        .columns
-        .iter()
-        .filter_map(|c| c.strip_suffix(".i_ac"))
-        .map(str::to_owned)
-        .collect();
+    let units = dvpp_e2e::units_with(&t.columns, ports::I_AC, expected)?;
+    dvpp_e2e::units_with(&t.columns, ports::SYNCHRONIZED, expected)?;
+    dvpp_e2e::units_with(&t.columns, ports::V_DC, expected)?;
     let mut lost_sync = Vec::new();
     let mut i_max = (0.0, String::new());
     let mut v_dc_min = (f64::INFINITY, String::new());
     for u in &units {
-        let sync = column(t, &format!("{u}.synchronized"))?;
+        let sync = column(t, &format!("{u}.{}", ports::SYNCHRONIZED))?;
         if let Some(k) = (after..time.len()).find(|&k| sync[k] < 0.5) {
             lost_sync.push((u.clone(), time[k]));
         }
-        let i = column(t, &format!("{u}.i_ac"))?
+        let i = column(t, &format!("{u}.{}", ports::I_AC))?
             .into_iter()
             .fold(0.0, f64::max);
         if i > i_max.0 {
             i_max = (i, u.clone());
         }
-        let vdc =
-            column(t, &format!("{u}.v_dc")).map(|x| x.into_iter().fold(f64::INFINITY, f64::min))?;
+        let vdc = column(t, &format!("{u}.{}", ports::V_DC))
+            .map(|x| x.into_iter().fold(f64::INFINITY, f64::min))?;
         if vdc < v_dc_min.0 {
             v_dc_min = (vdc, u.clone());
         }
@@ -145,8 +143,10 @@ fn judge(eps: u32, t: &Table) -> Result<Verdict, String> {
     })
 }
 
-/// Run `dist/case2_outage_eps*/` (bundled), one thread per run up to the cores.
-pub fn run(dist: &Path) -> Result<Vec<Verdict>, String> {
+/// Run `dist/case2_outage_eps*/` (bundled from `xtask/scenarios/`), one thread per run up to
+/// the cores.
+fn run(root: &Path) -> Result<Vec<Verdict>, String> {
+    let dist = root.join("dist");
     let jobs: Vec<u32> = EPS.to_vec();
     let results = std::sync::Mutex::new(Vec::new());
     let next = std::sync::atomic::AtomicUsize::new(0);
@@ -158,6 +158,11 @@ pub fn run(dist: &Path) -> Result<Vec<Verdict>, String> {
                 let Some(&eps) = jobs.get(k) else { break };
                 let name = format!("case2_outage_eps{eps:03}");
                 let path = dist.join(&name).join(format!("{name}.ssp"));
+                let scenario = root
+                    .join("xtask")
+                    .join("scenarios")
+                    .join(format!("{name}.toml"));
+                let expected = crate::scenario::units(&scenario);
                 let table = dvpp_cosim::ssp::read(&path)
                     .map_err(|e| format!("{name}: {e}"))
                     .and_then(|pkg| {
@@ -174,7 +179,7 @@ pub fn run(dist: &Path) -> Result<Vec<Verdict>, String> {
                         .map_err(|e| format!("{name}: {e}"))
                     });
                 let verdict = table
-                    .and_then(|t| judge(eps, &t))
+                    .and_then(|t| judge(eps, &t, &expected?))
                     .unwrap_or_else(|e| Verdict {
                         eps,
                         error: Some(e),
@@ -288,7 +293,7 @@ pub fn figure(v: &[Verdict]) -> Figure {
 
 /// Run the family, write `results/case2_outage.csv` and the figure, print the table.
 pub fn outage(root: &Path) -> Result<Vec<Verdict>, String> {
-    let verdicts = run(&root.join("dist"))?;
+    let verdicts = run(root)?;
     let results = root.join("results");
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;
     let mut csv = String::from(

@@ -1268,9 +1268,34 @@ fn system(
     })
 }
 
-/// Bundle the scenario at `path` into `out_dir` and write `<name>.ssp` there.
-pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<PathBuf, String> {
-    let name = name_of(path)?;
+/// A bundler that builds nothing: the model description of `b` described in process from its
+/// configuration (staged under `dir`), and an empty file in place of the FMU. Enough to compile a
+/// scenario into its system (the tests and `cargo xtask fuzz`), not to run it.
+pub fn described(dir: &Path, b: &Build) -> Result<ModelDescription, String> {
+    use fmi_export::{describe, Config};
+    let res = dir.join(&b.staging);
+    std::fs::create_dir_all(&res).map_err(|e| e.to_string())?;
+    std::fs::write(res.join(fmi_export::CONFIG_FILE), &b.config).map_err(|e| e.to_string())?;
+    for f in &b.files {
+        let name = f
+            .file_name()
+            .ok_or(format!("{}: not a file", f.display()))?;
+        std::fs::copy(f, res.join(name)).map_err(|e| format!("{}: {e}", f.display()))?;
+    }
+    let md = match b.package {
+        "fmu-grid" => describe::<fmu_grid::GridFmu>(&Config::load(&res)?, Some(&res)),
+        "fmu-der" => describe::<fmu_der::Der>(&Config::load(&res)?, Some(&res)),
+        "fmu-operator" => describe::<fmu_operator::Operator>(&Config::load(&res)?, Some(&res)),
+        p => Err(format!("unknown package {p}")),
+    }?;
+    // The system only needs the file to exist.
+    std::fs::write(&b.out, b"").map_err(|e| e.to_string())?;
+    Ok(md)
+}
+
+/// The scenario at `path` with its DERs as the system has them: each split into its
+/// grid-forming and grid-following parts by `[dvpp] eps`, and the fleets expanded.
+fn resolved(path: &Path) -> Result<Scenario, String> {
     let mut sc = Scenario::read(path)?;
     if let Some(eps) = sc.dvpp.as_ref().and_then(|d| d.eps) {
         if !(0.0..=1.0).contains(&eps) {
@@ -1290,6 +1315,18 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
     }
     sc.expand_fleets()
         .map_err(|e| format!("{}: {e}", path.display()))?;
+    Ok(sc)
+}
+
+/// The DER units (component names) of the scenario at `path`, in the grid's slot order.
+pub fn units(path: &Path) -> Result<Vec<String>, String> {
+    Ok(resolved(path)?.der.into_iter().map(|d| d.name).collect())
+}
+
+/// Bundle the scenario at `path` into `out_dir` and write `<name>.ssp` there.
+pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<PathBuf, String> {
+    let name = name_of(path)?;
+    let sc = resolved(path)?;
     let member = sc
         .membership()
         .map_err(|e| format!("{}: {e}", path.display()))?;
@@ -1382,7 +1419,6 @@ fn component(name: &str, md: &ModelDescription, start: &Table) -> Result<ssp::Co
 #[cfg(test)]
 mod tests {
     use super::*;
-    use fmi_export::{describe, Config};
     use std::collections::BTreeMap;
 
     /// Bundle `scenario` with the FMUs described in process instead of built: the system, and
@@ -1400,23 +1436,7 @@ mod tests {
         let dir = tmp.path().to_path_buf();
         let mut mds = BTreeMap::new();
         let mut one = |b: &Build| -> Result<ModelDescription, String> {
-            let res = dir.join(&b.staging);
-            std::fs::create_dir_all(&res).map_err(|e| e.to_string())?;
-            std::fs::write(res.join(fmi_export::CONFIG_FILE), &b.config)
-                .map_err(|e| e.to_string())?;
-            for f in &b.files {
-                std::fs::copy(f, res.join(f.file_name().unwrap())).map_err(|e| e.to_string())?;
-            }
-            let md = match b.package {
-                "fmu-grid" => describe::<fmu_grid::GridFmu>(&Config::load(&res)?, Some(&res)),
-                "fmu-der" => describe::<fmu_der::Der>(&Config::load(&res)?, Some(&res)),
-                "fmu-operator" => {
-                    describe::<fmu_operator::Operator>(&Config::load(&res)?, Some(&res))
-                }
-                p => Err(format!("unknown package {p}")),
-            }?;
-            // The system only needs the file to exist.
-            std::fs::write(&b.out, b"").map_err(|e| e.to_string())?;
+            let md = described(&dir, b)?;
             let component = b.out.file_stem().unwrap().to_string_lossy().into_owned();
             mds.insert(component, md.clone());
             Ok(md)
@@ -1742,6 +1762,30 @@ mod tests {
         ] {
             let e = bundle_error(&text);
             assert!(e.contains(expected), "expected '{expected}' in: {e}");
+        }
+    }
+
+    /// `units` (what the case-study checks expect) names the DER components of the compiled
+    /// system, in the grid's slot order, for every shipped scenario (none for `ieee9`).
+    #[test]
+    fn units_are_the_der_components_in_slot_order() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenarios");
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
+            .collect();
+        files.sort();
+        assert!(files.len() > 10, "the shipped scenarios");
+        for path in files {
+            let (system, mds) = bundled(&path);
+            let ders: Vec<String> = system
+                .components
+                .iter()
+                .filter(|c| mds[&c.name].model_identifier() == Some("dvpp_der"))
+                .map(|c| c.name.clone())
+                .collect();
+            assert_eq!(units(&path).unwrap(), ders, "{}", path.display());
         }
     }
 }

@@ -14,6 +14,7 @@ use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
 use dvpp_report::plot::{Figure, Panel, Style};
+use fmu_der::ports;
 use std::path::Path;
 use std::sync::{mpsc, Arc, Mutex};
 
@@ -155,7 +156,7 @@ fn at(t: &[f64], x: &[f64], time: f64) -> f64 {
     x[k]
 }
 
-fn measure(job: Job, table: Result<Table, String>) -> Row {
+fn measure(job: Job, table: Result<Table, String>, units: &[String]) -> Row {
     let mut row = Row {
         job,
         coi_nadir_hz: f64::NAN,
@@ -181,17 +182,19 @@ fn measure(job: Job, table: Result<Table, String>) -> Row {
         row.rocof_100 = (at(&time, &coi, T_EVENT + 0.1) - c0) / 0.1;
         row.rocof_500 = (at(&time, &coi, T_EVENT + 0.5) - c0) / 0.5;
         row.settle_hz = *coi.last().ok_or("no rows")?;
+        // The metrics find the units by their dc links: every unit of the scenario's.
+        dvpp_e2e::units_with(&t.columns, ports::V_DC, units)?;
         let m = Signals::of(&t)?.metrics();
         row.f_nrmse = m.f_nrmse;
         row.v_nrmse = m.v_nrmse;
         row.v_dc_dev = m.v_dc.iter().map(|d| d.1).fold(0.0, f64::max);
-        row.i_max = t
-            .columns
-            .iter()
-            .filter(|c| c.ends_with(".i_ac"))
-            .filter_map(|c| t.column(c))
-            .flat_map(|v| v.into_iter())
-            .fold(0.0, f64::max);
+        let mut i_max = 0.0_f64;
+        for u in dvpp_e2e::units_with(&t.columns, ports::I_AC, units)? {
+            i_max = col(&format!("{u}.{}", ports::I_AC))?
+                .into_iter()
+                .fold(i_max, f64::max);
+        }
+        row.i_max = i_max;
         Ok(())
     });
     row.error = measured.err();
@@ -199,13 +202,17 @@ fn measure(job: Job, table: Result<Table, String>) -> Row {
 }
 
 /// Run the family on `workers` threads with progress; rows in job order.
-fn run_all(dist: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, String> {
+fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, String> {
     let mut bases = Vec::new();
     for eps in EPS {
         let name = format!("case2_load_eps{eps:03}");
-        let path = dist.join(&name).join(format!("{name}.ssp"));
+        let path = root.join("dist").join(&name).join(format!("{name}.ssp"));
         let pkg = ssp::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-        bases.push((eps, pkg));
+        let scenario = root
+            .join("xtask")
+            .join("scenarios")
+            .join(format!("{name}.toml"));
+        bases.push((eps, pkg, crate::scenario::units(&scenario)?));
     }
     let bases = Arc::new(bases);
     let n = jobs.len();
@@ -219,7 +226,7 @@ fn run_all(dist: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, Stri
                 let Some((i, job)) = queue.lock().expect("queue").pop() else {
                     break;
                 };
-                let base = &bases.iter().find(|b| b.0 == job.eps).expect("bundled").1;
+                let (_, base, units) = bases.iter().find(|b| b.0 == job.eps).expect("bundled");
                 // The nominal run is the scenario as shipped (20 s); Monte Carlo runs are 10 s.
                 let opts = Options {
                     stop: (job.run > 0).then_some(T_RUN),
@@ -234,7 +241,7 @@ fn run_all(dist: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, Stri
                         })
                         .map_err(|e| e.to_string())
                 });
-                if tx.send((i, measure(job, table))).is_err() {
+                if tx.send((i, measure(job, table, units))).is_err() {
                     break;
                 }
             })
@@ -417,7 +424,7 @@ pub fn sweep(root: &Path, args: &[String]) -> Result<(), String> {
         all.len()
     );
     let started = std::time::Instant::now();
-    let rows = run_all(&root.join("dist"), all, workers)?;
+    let rows = run_all(root, all, workers)?;
     let wall = started.elapsed().as_secs_f64();
     let results = root.join("results");
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;

@@ -14,6 +14,9 @@ const LINKER_PACKAGE: &str = "gcc-mingw-w64-x86-64-win32";
 const WINE_PACKAGE: &str = "wine64";
 /// Set to `0` to bundle linux64 only even where the cross toolchain is installed.
 pub const SWITCH: &str = "DVPP_WIN64";
+/// Set by `cargo xtask test` for the tests: the wine test fails, instead of skipping, when wine,
+/// mingw-w64 or the FMUs' win64 binaries are missing.
+pub const REQUIRE: &str = "DVPP_REQUIRE_WIN64";
 
 /// Whether this run of xtask built the win64 binaries (set by [`build`]).
 static BUILT: OnceLock<bool> = OnceLock::new();
@@ -120,19 +123,21 @@ fn wine_installed() -> bool {
 }
 
 /// Install what the win64 binaries and their wine test need, if missing: the Rust target (rustup)
-/// and mingw-w64 and wine (apt-get). Says what it does; on failure says what will be skipped and
-/// goes on (the FMUs are then bundled for linux64 only and the wine test skips).
-pub fn install_for_tests() {
+/// and mingw-w64 and wine (apt-get). Says what it does and goes on on failure; returns whether
+/// the wine test is required (it is, unless [`SWITCH`] is `0`): then `cargo xtask test` sets
+/// [`REQUIRE`] and whatever could not be installed fails that test instead of skipping it.
+pub fn install_for_tests() -> bool {
     if std::env::var(SWITCH).is_ok_and(|v| v == "0") {
         println!("test setup: {SWITCH}=0, no win64 binaries and no wine test");
-        return;
+        return false;
     }
     if !target_installed() {
         println!("test setup: installing the Rust target {TARGET} for the FMUs' win64 binaries");
         if !try_run("rustup", &["target", "add", TARGET]) {
             println!(
                 "test setup: could not install {TARGET} (`rustup target add {TARGET}` failed); \
-                 the FMUs get no win64 binaries and the wine test skips"
+                 the FMUs get no win64 binaries and the wine test fails ({REQUIRE} is set; \
+                 {SWITCH}=0 leaves win64 out on purpose)"
             );
         }
     }
@@ -144,7 +149,7 @@ pub fn install_for_tests() {
         packages.push(WINE_PACKAGE);
     }
     if packages.is_empty() {
-        return;
+        return true;
     }
     println!(
         "test setup: installing {} with apt-get (the win64 linker, and wine to run the win64 \
@@ -159,9 +164,10 @@ pub fn install_for_tests() {
     if !installed {
         println!(
             "test setup: could not install {} with apt-get (not Debian, or not root?); without \
-             {LINKER} the FMUs get no win64 binaries, and without mingw-w64 or wine the wine test \
-             skips",
+             {LINKER} the FMUs get no win64 binaries, and the wine test fails ({REQUIRE} is set; \
+             {SWITCH}=0 leaves win64 out on purpose)",
             packages.join(" ")
         );
     }
+    true
 }

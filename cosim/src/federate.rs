@@ -1030,6 +1030,8 @@ pub struct FederationOptions {
     pub opts: Options,
     /// HELICS core type (default [`DEFAULT_CORE`]).
     pub core: Option<String>,
+    /// The broker's time coordination (default: [`Timing::for_federates`]).
+    pub timing: Option<Timing>,
     /// Where the federates write their CSVs (default: next to `out`).
     pub work_dir: Option<PathBuf>,
 }
@@ -1180,10 +1182,39 @@ fn component_names(package: &ssp::Package) -> Vec<String> {
         .collect()
 }
 
-/// The broker's options besides core type, federate count, interface and port: one global time
-/// coordinator (every round is a barrier of all federates, so a grant takes one request to the
-/// broker and one answer instead of a negotiation among the federates' cores).
-const BROKER_FLAGS: [&str; 2] = ["--globaltime", "--loglevel=error"];
+/// How the broker coordinates time ([`FederationOptions::timing`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Timing {
+    /// HELICS's default: the federates' cores negotiate each grant among themselves.
+    Distributed,
+    /// One coordinator at the broker: every round is a barrier, a grant one request to the
+    /// broker and one answer, whatever the number of federates.
+    Global,
+}
+
+/// From this many federates on, [`Timing::Global`] by default. Measured on case study I (1 s at
+/// 1 ms, this project's 2-core machine, idle): distributed 1.27, 1.96-2.28, 5.5 and 11.6 ms per
+/// step for 2, 3, 4 and 5 federates, global 2.3-2.5, 2.7, 2.7 and 2.9 ms (docs/scaling.md).
+pub const GLOBAL_FROM: usize = 4;
+
+impl Timing {
+    /// The default for `federates` federates.
+    pub fn for_federates(federates: usize) -> Timing {
+        if federates >= GLOBAL_FROM {
+            Timing::Global
+        } else {
+            Timing::Distributed
+        }
+    }
+
+    /// The broker's options for it.
+    fn flags(self) -> &'static [&'static str] {
+        match self {
+            Timing::Distributed => &["--loglevel=error"],
+            Timing::Global => &["--globaltime", "--loglevel=error"],
+        }
+    }
+}
 
 /// A child process of the launcher, which ends with it (SIGTERM when the launcher dies, also by
 /// SIGKILL, so that no broker or federate outlives its federation).
@@ -1210,11 +1241,16 @@ fn stop(c: &mut std::process::Child) {
 
 /// `helics_broker` for `federates` federates on loopback, on a port the kernel chooses and holds
 /// for it (port 0): no other process can take it between choosing and listening.
-fn start_broker(exe: &Path, core: &str, federates: usize) -> Result<std::process::Child, Error> {
+fn start_broker(
+    exe: &Path,
+    core: &str,
+    federates: usize,
+    timing: Timing,
+) -> Result<std::process::Child, Error> {
     child(exe)
         .args(["-f", &federates.to_string()])
         .arg(format!("--coretype={core}"))
-        .args(BROKER_FLAGS)
+        .args(timing.flags())
         .arg("--local_interface=tcp://127.0.0.1")
         .arg("--port=0")
         .stdout(std::process::Stdio::null())
@@ -1275,7 +1311,8 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
     std::fs::create_dir_all(&dir).map_err(|e| Error(format!("{}: {e}", dir.display())))?;
     let core = o.core.as_deref().unwrap_or(DEFAULT_CORE);
     let started = Instant::now();
-    let mut broker = start_broker(&broker_exe, core, feds.len())?;
+    let coordination = o.timing.unwrap_or(Timing::for_federates(feds.len()));
+    let mut broker = start_broker(&broker_exe, core, feds.len(), coordination)?;
     let port = match wait_listening(&mut broker, &broker_exe) {
         Ok(p) => p,
         Err(e) => {
@@ -1297,7 +1334,7 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
         "{} -f {} --coretype={core} {} --local_interface=tcp://BROKER_HOST --port={port}",
         broker_exe.display(),
         feds.len(),
-        BROKER_FLAGS.join(" ")
+        coordination.flags().join(" ")
     )];
     let mut failure = None;
     for (k, g) in feds.iter().enumerate() {

@@ -46,15 +46,16 @@ against time as an SVG figure; it keeps the results in memory.
        cosim federate SYSTEM.ssp --component NAME[,NAME...] --broker HOST[:PORT] [--name FED]
              [--out FILE.csv] [--stop T] [--step H] [--helics-lib PATH] [--core tcpss|zmq|tcp|...]
        cosim federation SYSTEM.ssp [--groups a,b;c;d] [--out FILE.csv] [--stop T] [--step H]
-             [--helics-lib PATH] [--core tcpss|zmq|tcp|...]
+             [--helics-lib PATH] [--core tcpss|zmq|tcp|...] [--timing global|distributed]
 
 `federate` runs the listed components as one HELICS value federate (tcpss core by default: one
 TCP connection out to the broker, no port of its own) with the results of --algorithm jacobi bit
 for bit, writing their outputs to FILE.csv; a federate that cannot join its broker within 20 s
 fails naming the broker. `federation` runs the whole system so on this machine (helics_broker on
 127.0.0.1 on a port the kernel picks, one federate process per group, by default one per
-component), merges the CSVs (default <system name>.csv) and prints the commands for several
-machines; SIGINT/SIGTERM/SIGHUP, or the launcher's death, stop the broker and every federate. libhelics (the `helics` Python wheel): --helics-lib, $HELICS_LIB, or the test
+component; --timing: the broker's time coordination, by default distributed for up to 3
+federates and global from 4, whichever was faster measured), merges the CSVs (default <system
+name>.csv) and prints the commands for several machines; SIGINT/SIGTERM/SIGHUP, or the launcher's death, stop the broker and every federate. libhelics (the `helics` Python wheel): --helics-lib, $HELICS_LIB, or the test
 venv target/venv (docs/scaling.md).";
 
 #[derive(Default)]
@@ -412,6 +413,13 @@ fn parse_federated() -> Result<(FederateOptions, FederationOptions), String> {
             "--helics-lib" => fed.helics_lib = Some(value("a path")?.into()),
             "--groups" => all.groups = Some(value("groups like a,b;c")?),
             "--core" => fed.core = Some(value("a HELICS core type")?),
+            "--timing" => {
+                all.timing = Some(match value("global or distributed")?.as_str() {
+                    "global" => federate::Timing::Global,
+                    "distributed" => federate::Timing::Distributed,
+                    t => return Err(format!("--timing {t}: global or distributed")),
+                })
+            }
             "--stop" => fed.opts.stop = Some(number("--stop", it.next())?),
             "--step" => fed.opts.step = Some(number("--step", it.next())?),
             "-h" | "--help" => return Err(USAGE.into()),

@@ -137,6 +137,7 @@ impl Format for Mat {
     }
 
     fn row(&mut self, row: &[f64], out: &mut Vec<u8>) {
+        out.reserve(8 * row.len());
         for x in row {
             out.extend_from_slice(&x.to_le_bytes());
         }
@@ -179,6 +180,8 @@ pub struct ResultWriter<F: Format + Send + 'static> {
     /// Rows of the current chunk and their values, row after row.
     chunk: Vec<f64>,
     chunk_rows: usize,
+    /// Chunks made so far (they circulate between the run and the writer thread).
+    chunks: usize,
     /// Values per row.
     width: usize,
     /// Rows handed to the writer thread, and (once finished) rows in the file.
@@ -218,8 +221,8 @@ pub type MatWriter = ResultWriter<Mat>;
 
 /// How many bytes of whole rows the writer thread gathers before writing them.
 const BUFFER: usize = 1 << 16;
-/// Values in a chunk of rows (at least one row).
-const CHUNK: usize = 1 << 14;
+/// Values in a chunk of rows (at least one row): 1 MiB.
+const CHUNK: usize = 1 << 17;
 /// Chunks that may wait for the writer thread.
 const CHUNKS: usize = 4;
 
@@ -238,6 +241,7 @@ impl<F: Format + Send + Default + 'static> ResultWriter<F> {
             writer: None,
             chunk: Vec::new(),
             chunk_rows: 0,
+            chunks: 1,
             width: 0,
             rows: 0,
         }
@@ -266,10 +270,24 @@ impl<F: Format + Send + 'static> ResultWriter<F> {
         if self.chunk_rows == 0 {
             return Ok(());
         }
-        let next = w
-            .empty
-            .try_recv()
-            .unwrap_or_else(|_| Vec::with_capacity(self.chunk.capacity()));
+        // The chunks circulate: a fresh one only while fewer than CHUNKS + 1 exist, then wait
+        // for the writer to hand one back (memory stays bounded, pages stay mapped).
+        let next =
+            match w.empty.try_recv() {
+                Ok(c) => c,
+                Err(_) if self.chunks < CHUNKS + 1 => {
+                    self.chunks += 1;
+                    Vec::with_capacity(self.chunk.capacity())
+                }
+                Err(_) => match w.empty.recv() {
+                    Ok(c) => c,
+                    Err(_) => {
+                        return Err(w.failed.lock().map_or(None, |f| f.clone()).unwrap_or_else(
+                            || Error(format!("{}: the writer stopped", self.partial.display())),
+                        ))
+                    }
+                },
+            };
         let full = std::mem::replace(&mut self.chunk, next);
         self.rows += self.chunk_rows as u64;
         self.chunk_rows = 0;
@@ -417,7 +435,7 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
         self.width = run.columns.len().max(1);
         self.chunk = Vec::with_capacity(CHUNK.max(self.width));
         let (chunks, inbox) = std::sync::mpsc::sync_channel(CHUNKS);
-        let (recycle, empty) = std::sync::mpsc::sync_channel(CHUNKS + 1);
+        let (recycle, empty) = std::sync::mpsc::sync_channel(CHUNKS + 2);
         let failed = std::sync::Arc::new(std::sync::Mutex::new(None));
         let (width, flag) = (self.width, failed.clone());
         let thread = std::thread::Builder::new()
@@ -646,6 +664,10 @@ impl<O: Observer> Observer for Select<O> {
         self.seen += 1;
         if !due {
             return Ok(());
+        }
+        if self.keep.len() == row.len() {
+            // Every column: the row as it is.
+            return self.inner.sample(row);
         }
         self.row.clear();
         self.row.extend(self.keep.iter().map(|&k| row[k]));

@@ -84,7 +84,8 @@ tasks:
            768 DER units, shared and separate binaries, 1 and 2 threads, and the same
            systems in libcosim
   demo     bundle, then run case study I (case1_load, case1_cloud) in our master: CSVs and
-           figures in results/, figures in tests/figures/, metrics table into README.md; then
+           figures in results/, figures in tests/figures/, metrics table into
+           docs/case-studies.md; then
            case study III with its R/X Monte Carlo (as `case3`)
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
            Rust tests (the win64 binaries under wine among them, required: DVPP_REQUIRE_WIN64=1
@@ -112,7 +113,7 @@ tasks:
            panic, crash, hang, unclear refusal: bad) and the first bad cases of each kind,
            and fails if there is one; J cases at a time (default 1); `--first K --cases 1`
            re-runs case K alone
-  docs     regenerate README.md's variable tables from the FMUs' model descriptions";
+  docs     regenerate docs/variables.md's tables from the FMUs' model descriptions";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -592,17 +593,16 @@ fn demo() -> Result {
         gap_after * 100.0
     ));
     print!("{table}");
-    let path = root().join("README.md");
-    let readme = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let fresh = docs::replace_between(
-        &readme,
+    docs::update_between(
+        &root(),
+        docs::CASE_STUDIES,
         "<!-- metrics:begin -->",
         "<!-- metrics:end -->",
         &table,
     )?;
-    std::fs::write(&path, fresh).map_err(|e| e.to_string())?;
     println!(
-        "updated the metrics table in README.md; results in {}",
+        "updated the metrics table in {}; results in {}",
+        docs::CASE_STUDIES,
         results.display()
     );
     case3::case3(&root(), &[])
@@ -714,11 +714,11 @@ fn test() -> Result {
 }
 
 fn write_docs() -> Result {
-    let path = root().join("README.md");
-    let readme = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let path = root().join(docs::VARIABLES);
+    let page = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
     let packages: Vec<&str> = FMUS.iter().map(|f| f.package).collect();
-    let fresh = docs::replace_section(&readme, &docs::section(&root(), &packages)?)?;
+    let fresh = docs::replace_section(&page, &docs::section(&root(), &packages)?)?;
     std::fs::write(&path, fresh).map_err(|e| e.to_string())?;
-    println!("updated the variable tables in README.md");
+    println!("updated the variable tables in {}", docs::VARIABLES);
     Ok(())
 }

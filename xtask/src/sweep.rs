@@ -388,7 +388,7 @@ fn table(rows: &[Row]) -> String {
     out
 }
 
-/// Save `fig` as `results/NAME` and `tests/figures/NAME` (the README shows the latter).
+/// Save `fig` as `results/NAME` and `tests/figures/NAME` (the docs show the latter).
 pub fn save_figure(root: &Path, fig: &Figure, name: &str) -> Result<(), String> {
     for path in [
         root.join("results").join(name),

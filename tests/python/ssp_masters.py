@@ -16,7 +16,7 @@ What the masters do (fmpy 0.3.32, libcosimpy 0.0.6 = libcosim 0.11.2):
   accumulating ``time += step``.  Every input connector declared in the SSD must be connected
   (otherwise fmpy wires it to a stale connection).  ``run_fmpy`` passes the SSD's inline
   bindings as fmpy's parameter set (our FMUs carry the same values as start values anyway).
-  The zeros of the first step are a real disturbance for our systems (see the README).  An SSD
+  The zeros of the first step are a real disturbance for our systems (see docs/architecture.md, "Third-party masters").  An SSD
   with a LinearTransformation is refused.
 * libcosim reads the .ssp zip (unpacks it; a directory or an .ssd file work too), applies each
   component's first ParameterBinding as initial values (variables of causality parameter or

@@ -51,7 +51,7 @@ def test_fmpy_validates_and_runs_case1_load_and_agrees_after_the_event(tmp_path,
     assert np.abs(df_fmpy[after]).max() > 0.5 * peak, "the load step shows in fmpy's run"
     # fmpy's zero inputs on its first step are a fault at the DVPP slots that lasts one step.
     # At 0.1 ms it has rung out by the event; at the scenario's 1 ms its swing is still about
-    # 3 % of the peak there (README: "Third-party masters").
+    # 3 % of the peak there (docs/architecture.md: "Third-party masters").
     assert gap < (0.03 if step < STEP else 0.05), f"fmpy vs our master after the event: {gap:.2%} of the peak deviation"
 
 

@@ -126,7 +126,7 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
 
     // dc links in the cloud: within ±5 % wherever the primary source has reserve; where a link
     // leaves that band, its dc source is at its available power (the capacity-proportional
-    // ADPF asks the PV for more than its deloaded reserve, README "What limits the matching").
+    // ADPF asks the PV for more than its deloaded reserve, docs/case-studies.md "What limits the matching").
     for d in &cloud.der {
         let (v_dc, p_dc, avail) = (
             &d.v_dc,

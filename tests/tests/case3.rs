@@ -103,7 +103,7 @@ fn rotational_control_matches_t_des_at_every_poc_and_beats_the_classical_one() {
     let int_rot = run("case3_int_rot");
     for (name, m, bound) in [
         // The paper's 5 % for both disturbances; measured 1.59 %, 1.71 % (external) and
-        // 3.33 %, 3.19 % (internal) (README: "Case study III").
+        // 3.33 %, 3.19 % (internal) (docs/case-studies.md: "Case study III").
         ("case3_ext_rot", &ext_rot, 0.05),
         ("case3_int_rot", &int_rot, 0.05),
     ] {

@@ -79,7 +79,7 @@ struct Dvpp<'a> {
 }
 
 /// The largest NRMSE of the PCC frequency against `ref.df` each DVPP is held to (measured:
-/// printed by the test; see README "Scaling up and out").
+/// printed by the test; see docs/usage.md "Scaling up and out").
 const F_NRMSE_MAX: f64 = 0.08;
 
 fn check(name: &str, t: &Table, dvpps: &[Dvpp]) {

@@ -148,3 +148,154 @@ mod tests {
         }
     }
 }
+
+/// The relative links of a markdown page that do not resolve: a missing file, or an anchor that
+/// no heading of the target page makes (GitHub's rule: lower case, punctuation dropped, spaces
+/// as `-`). Code blocks, code spans and `$…$` math are not searched for links.
+#[cfg(test)]
+pub fn broken_links(page: &Path) -> Result<Vec<String>, String> {
+    let text = std::fs::read_to_string(page).map_err(|e| format!("{}: {e}", page.display()))?;
+    let dir = page.parent().unwrap_or(Path::new("."));
+    let mut broken = Vec::new();
+    for url in links(&text) {
+        if url.contains("://") || url.starts_with("mailto:") {
+            continue;
+        }
+        let (file, anchor) = url.split_once('#').unwrap_or((&url, ""));
+        let target = if file.is_empty() {
+            page.to_path_buf()
+        } else {
+            dir.join(file)
+        };
+        if !target.exists() {
+            broken.push(format!("{url}: no such file"));
+        } else if !anchor.is_empty() {
+            let headings = std::fs::read_to_string(&target)
+                .map(|t| anchors(&t))
+                .unwrap_or_default();
+            if !headings.iter().any(|a| a == anchor) {
+                broken.push(format!("{url}: no such heading"));
+            }
+        }
+    }
+    Ok(broken)
+}
+
+/// `text` without its fenced code blocks (the lines of prose only).
+#[cfg(test)]
+fn prose(text: &str) -> impl Iterator<Item = &str> {
+    let mut fenced = false;
+    text.lines().filter(move |line| {
+        if line.trim_start().starts_with("```") {
+            fenced = !fenced;
+            return false;
+        }
+        !fenced
+    })
+}
+
+/// The targets of the inline links and images of `text`.
+#[cfg(test)]
+fn links(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    for line in prose(text) {
+        // Code spans and math hold brackets that are not links.
+        let mut plain = String::new();
+        let mut skip: Option<char> = None;
+        for c in line.chars() {
+            match skip {
+                Some(end) if c == end => skip = None,
+                Some(_) => {}
+                None if c == '`' || c == '$' => skip = Some(c),
+                None => plain.push(c),
+            }
+        }
+        let mut rest = plain.as_str();
+        while let Some(i) = rest.find("](") {
+            rest = &rest[i + 2..];
+            if let Some(end) = rest.find(')') {
+                let url = &rest[..end];
+                if !url.is_empty() && !url.contains(char::is_whitespace) {
+                    out.push(url.to_string());
+                }
+                rest = &rest[end..];
+            }
+        }
+    }
+    out
+}
+
+/// The anchors GitHub gives the headings of `text`.
+#[cfg(test)]
+fn anchors(text: &str) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let mut seen: Vec<String> = Vec::new();
+    for line in prose(text) {
+        let hashes = line.chars().take_while(|&c| c == '#').count();
+        if !(1..=6).contains(&hashes) || !line[hashes..].starts_with(' ') {
+            continue;
+        }
+        let slug: String = line[hashes..]
+            .trim()
+            .to_lowercase()
+            .chars()
+            .filter(|&c| c.is_alphanumeric() || c == '-' || c == '_' || c == ' ')
+            .map(|c| if c == ' ' { '-' } else { c })
+            .collect();
+        let n = seen.iter().filter(|s| **s == slug).count();
+        out.push(if n == 0 {
+            slug.clone()
+        } else {
+            format!("{slug}-{n}")
+        });
+        seen.push(slug);
+    }
+    out
+}
+
+#[cfg(test)]
+mod link_tests {
+    /// Every relative link of the README and the manual leads to a file, and every anchor to a
+    /// heading of its page.
+    #[test]
+    fn links_of_the_readme_and_the_docs_resolve() {
+        let root = crate::root();
+        let mut pages = vec![root.join("README.md"), root.join("fmu-grid/README.md")];
+        let mut docs: Vec<_> = std::fs::read_dir(root.join("docs"))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|x| x == "md"))
+            .collect();
+        docs.sort();
+        pages.extend(docs);
+        let mut broken = Vec::new();
+        for page in &pages {
+            for b in super::broken_links(page).unwrap() {
+                broken.push(format!(
+                    "{}: {b}",
+                    page.strip_prefix(&root).unwrap().display()
+                ));
+            }
+        }
+        assert!(broken.is_empty(), "broken links:\n{}", broken.join("\n"));
+    }
+
+    #[test]
+    fn anchors_follow_githubs_rule() {
+        let a = super::anchors(
+            "# Case study II: hybrid DVPPs\n```\n# not a heading\n```\n## 10. Where it departs, and why\n## Tests\n## Tests of x\n## Tests\n",
+        );
+        assert_eq!(
+            a,
+            [
+                "case-study-ii-hybrid-dvpps",
+                "10-where-it-departs-and-why",
+                "tests",
+                "tests-of-x",
+                "tests-1"
+            ]
+        );
+        let l = super::links("see [a](x.md#y), `[b](no)` and $[F L](u)$ ![f](../f.svg)\n");
+        assert_eq!(l, ["x.md#y", "../f.svg"]);
+    }
+}

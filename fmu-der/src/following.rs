@@ -1,7 +1,7 @@
 //! The grid-following step: a PLL measures `Δf`, the converter injects `p₀ - T_fp Δf` and `q₀ - T_vq Δv`.
 
 use crate::limits;
-use crate::runtime::{pll_model, Channel, Runtime};
+use crate::runtime::{pll_model, Common};
 use crate::step::{Outcome, StepPoint};
 use crate::{err, AdpfKind, Der};
 use dvpp_control::{GflFpModel, LtiSimulator};
@@ -28,7 +28,8 @@ impl Der {
     /// within the limits, and the PLL.
     pub(crate) fn step_following(
         &self,
-        rt: &mut Runtime,
+        g: &mut Following,
+        rt: &mut Common,
         s: &mut Store,
         at: &StepPoint,
         ctx: &mut Context,
@@ -46,9 +47,6 @@ impl Der {
             budget,
             i_max,
         } = *at;
-        let Channel::Following(g) = &mut rt.channel else {
-            unreachable!("the grid-following step runs on a grid-following unit");
-        };
         match rt.p_kind {
             AdpfKind::Static | AdpfKind::LowPass => {
                 g.fp.set_mu(s[self.mu_p]).map_err(|e| err("mu_p", e))?;

@@ -1,7 +1,7 @@
 //! The grid-forming step: `Δf = -T_pf/m Δp` sets the angle, a PI on `E` makes `q` track its reference.
 
 use crate::limits;
-use crate::runtime::{Channel, Runtime};
+use crate::runtime::Common;
 use crate::step::{Outcome, StepPoint};
 use crate::{err, AdpfKind, Der};
 use dvpp_control::{Complex, GfmPfModel};
@@ -43,7 +43,8 @@ impl Der {
     /// converter's output stage.
     pub(crate) fn step_forming(
         &self,
-        rt: &mut Runtime,
+        f: &mut Forming,
+        rt: &mut Common,
         s: &mut Store,
         at: &StepPoint,
     ) -> Result<Outcome, ModelError> {
@@ -60,9 +61,6 @@ impl Der {
             i_max,
             ..
         } = *at;
-        let Channel::Forming(f) = &mut rt.channel else {
-            unreachable!("the grid-forming step runs on a grid-forming unit");
-        };
         match rt.p_kind {
             AdpfKind::Static | AdpfKind::LowPass => {
                 f.pf.set_mu(s[self.mu_p]).map_err(|e| err("mu_p", e))?;

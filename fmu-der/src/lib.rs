@@ -186,7 +186,7 @@ impl Model for Der {
     fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
         // Initialization may run several times in initialization mode; a warning already given
         // in this episode is not repeated (a reset starts a new episode with `rt` = None).
-        let again = self.rt.take().map(|rt| rt.warned_gains);
+        let again = self.rt.take().map(|rt| rt.common.warned_gains);
         self.rt = Some(Box::new(self.build(s, ctx, again)?));
         Ok(())
     }

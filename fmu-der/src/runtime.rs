@@ -24,6 +24,12 @@ pub(crate) enum Channel {
 #[derive(Clone, Serialize, Deserialize)]
 pub(crate) struct Runtime {
     pub(crate) channel: Channel,
+    pub(crate) common: Common,
+}
+
+/// The state both channels share.
+#[derive(Clone, Serialize, Deserialize)]
+pub(crate) struct Common {
     pub(crate) vq: VqModel,
     pub(crate) dc: DcSide,
     /// Kind of the p-f ADPF (which gains the inputs set).
@@ -256,8 +262,7 @@ impl Der {
             self.converter_power(s, r, mode)
         };
         let rot = Rotation::from_rx(s[self.rot_rx]).map_err(|e| err("rot.rx", e))?;
-        let mut rt = Runtime {
-            channel,
+        let common = Common {
             vq,
             dc: DcSide::new(dc, p_ac),
             p_kind,
@@ -280,6 +285,7 @@ impl Der {
             limit: LimitEpisodes::default(),
             warned_gains: again.unwrap_or(false),
         };
+        let mut rt = Runtime { channel, common };
         match &mut rt.channel {
             Channel::Forming(f) => {
                 f.e = e0;
@@ -366,13 +372,13 @@ impl Der {
     /// The dc side's outputs.
     pub(crate) fn write_dc(&self, s: &mut Store, rt: &Runtime) {
         let (s_base, s_rated) = (s[self.s_base], s[self.s_rated]);
-        s[self.v_dc] = rt.dc.v_dc();
-        s[self.p_dc] = rt.dc.p_src() * s_rated / s_base;
+        s[self.v_dc] = rt.common.dc.v_dc();
+        s[self.p_dc] = rt.common.dc.p_src() * s_rated / s_base;
         // Energies in MJ: pu·s on S_rated times S_rated in MVA.
-        s[self.e_src] = rt.dc.e_src * s_rated;
-        s[self.e_ac] = rt.dc.e_ac * s_rated;
-        s[self.e_loss] = rt.dc.e_loss * s_rated;
-        s[self.w_dc] = rt.dc.energy() * s_rated;
+        s[self.e_src] = rt.common.dc.e_src * s_rated;
+        s[self.e_ac] = rt.common.dc.e_ac * s_rated;
+        s[self.e_loss] = rt.common.dc.e_loss * s_rated;
+        s[self.w_dc] = rt.common.dc.energy() * s_rated;
         let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
         // At a dead bus no power flows: inputs that say otherwise are start values, not a current.
         s[self.i_ac] = if v < limits::V_FLOOR {
@@ -387,7 +393,7 @@ impl Der {
         } else {
             0.0
         };
-        let (lo, hi) = rt.dc.ac_budget();
+        let (lo, hi) = rt.common.dc.ac_budget();
         s[self.p_min] = lo * s_rated / s_base - r_loss;
         s[self.p_max] = hi * s_rated / s_base - r_loss;
         s[self.i_limit] = s[self.i_max];
@@ -395,17 +401,17 @@ impl Der {
 
     /// The measured rotated powers `p'`, `q'` (outputs `p_rot`, `q_rot`).
     pub(crate) fn write_rotated(&self, s: &mut Store, rt: &Runtime) {
-        let (p_rot, q_rot) = rt.rot.rotate(s[self.p], s[self.q]);
+        let (p_rot, q_rot) = rt.common.rot.rotate(s[self.p], s[self.q]);
         s[self.p_rot] = p_rot;
         s[self.q_rot] = q_rot;
     }
 
     /// The limit flags.
     pub(crate) fn write_limits(&self, s: &mut Store, rt: &Runtime) {
-        s[self.limit_current] = rt.limit.current.active();
-        s[self.limit_dc] = rt.limit.dc.active();
-        s[self.limit_source] = rt.limit.source.active();
-        s[self.limit_modulation] = rt.limit.modulation.active();
+        s[self.limit_current] = rt.common.limit.current.active();
+        s[self.limit_dc] = rt.common.limit.dc.active();
+        s[self.limit_source] = rt.common.limit.source.active();
+        s[self.limit_modulation] = rt.common.limit.modulation.active();
     }
 
     /// The highest set point the primary source allows at `t`: `deload · P_avail - G_dc`, on S_base.

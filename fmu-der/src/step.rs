@@ -1,7 +1,7 @@
 //! One communication step: set point, dc gains, the channel's step, limit episodes, dc side, startup.
 
 use crate::runtime::{Channel, Runtime, Startup};
-use crate::{err, AdpfKind, Der, Mode, MAX_LPF};
+use crate::{err, AdpfKind, Der, MAX_LPF};
 use fmi_export::{Context, ModelError, Store};
 
 /// Below this terminal voltage (pu) a grid-following unit's PLL has no angle to lock to: the
@@ -48,10 +48,10 @@ impl Der {
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
         let following = matches!(rt.channel, Channel::Following(_));
-        if following && rt.startup.is_none() && s[self.v] < PLL_V_MIN {
+        if following && rt.common.startup.is_none() && s[self.v] < PLL_V_MIN {
             // The PLL has no voltage to lock to: the unit has lost synchronism. It blocks its
             // current and waits for the voltage as at a start from zero voltage.
-            rt.startup = Some(Startup {
+            rt.common.startup = Some(Startup {
                 ok_since: None,
                 v_last: s[self.v],
             });
@@ -61,26 +61,29 @@ impl Der {
                 s[self.v]
             ));
         }
-        if rt.startup.is_some() && !self.wait_for_voltage(rt, s, t, h, ctx) {
+        if rt.common.startup.is_some() && !self.wait_for_voltage(rt, s, t, h, ctx) {
             self.step_dc(rt, s, t, h, ctx);
             return Ok(());
         }
         let to_dvpp = s[self.s_base] / s[self.s_dvpp];
         let to_rated = s[self.s_base] / s[self.s_rated];
-        let dv = s[self.v] - rt.v0;
+        let dv = s[self.v] - rt.common.v0;
         let lpf = self.lpf_gains(s);
         // Dc gains from the operator (the participation bank identity holds while they move).
-        if rt.q_kind.has_dc_gain() {
-            rt.vq.set_mu(s[self.mu_q]).map_err(|e| err("mu_q", e))?;
+        if rt.common.q_kind.has_dc_gain() {
+            rt.common
+                .vq
+                .set_mu(s[self.mu_q])
+                .map_err(|e| err("mu_q", e))?;
         }
-        let lpf = if rt.p_kind == AdpfKind::Complement {
+        let lpf = if rt.common.p_kind == AdpfKind::Complement {
             let share = s[self.adpf_p.share.expect("complement parameters")];
-            let n = rt.n_lpf;
+            let n = rt.common.n_lpf;
             let sum: f64 = lpf[..n].iter().sum();
             let mut g = lpf;
             if sum > share + 1e-9 {
-                if !rt.warned_gains {
-                    rt.warned_gains = true;
+                if !rt.common.warned_gains {
+                    rt.common.warned_gains = true;
                     ctx.warn(format!(
                         "mu_p_lpf sums to {sum} > share {share}: scaled down to keep the participation condition"
                     ));
@@ -95,7 +98,7 @@ impl Der {
         };
         // The set point: the dispatch (ramped in after a start from zero voltage), curtailed to
         // what the primary source allows (a cloud lowers it).
-        let ramp = rt.t_sync.map_or(1.0, |t0| {
+        let ramp = rt.common.t_sync.map_or(1.0, |t0| {
             let r = s[self.ramp];
             if r > 0.0 {
                 ((t + h - t0) / r).min(1.0)
@@ -103,11 +106,11 @@ impl Der {
                 1.0
             }
         });
-        let dispatch = rt.p0 + s[self.redispatch];
+        let dispatch = rt.common.p0 + s[self.redispatch];
         let p_set = (dispatch * ramp).min(self.headroom_limit(s, t));
         s[self.p_set] = p_set;
         let (v, v_angle) = (s[self.v], s[self.v_angle]);
-        let budget = rt.dc.ac_budget();
+        let budget = rt.common.dc.ac_budget();
         let i_max = s[self.i_max];
         let at = StepPoint {
             t,
@@ -127,11 +130,11 @@ impl Der {
             dc_limit,
             request,
             modulation,
-        } = match rt.channel.mode() {
-            Mode::GridForming => self.step_forming(rt, s, &at)?,
-            Mode::GridFollowing => self.step_following(rt, s, &at, ctx)?,
+        } = match &mut rt.channel {
+            Channel::Forming(f) => self.step_forming(f, &mut rt.common, s, &at)?,
+            Channel::Following(g) => self.step_following(g, &mut rt.common, s, &at, ctx)?,
         };
-        let lim = &mut rt.limit;
+        let lim = &mut rt.common.limit;
         let t1 = t + h;
         lim.current
             .record(t1, current_limit, request, || "current limit I_max", ctx);
@@ -139,14 +142,14 @@ impl Der {
         lim.dc.record(
             t1,
             dc_limit,
-            rt.dc.v_dc(),
+            rt.common.dc.v_dc(),
             || format!("dc-link power budget [{lo:.3}, {hi:.3}] pu (v_dc)"),
             ctx,
         );
         lim.modulation.record(
             t1,
             modulation,
-            s[self.e_max] * rt.dc.v_dc(),
+            s[self.e_max] * rt.common.dc.v_dc(),
             || "modulation limit E_max * v_dc",
             ctx,
         );
@@ -168,12 +171,14 @@ impl Der {
         let (r, _) = self.slot_impedance(s);
         let p_ac = self.converter_power(s, r, rt.channel.mode());
         let cap = s[self.p_avail] * to_rated;
-        let dc = rt.dc.step(p_ac, h, cap);
-        rt.dc.update_reserve(rt.limit.dc.active(), cap);
-        rt.limit.source.record(
+        let dc = rt.common.dc.step(p_ac, h, cap);
+        rt.common
+            .dc
+            .update_reserve(rt.common.limit.dc.active(), cap);
+        rt.common.limit.source.record(
             t + h,
             dc.source,
-            rt.dc.p_src(),
+            rt.common.dc.p_src(),
             || format!("primary source at its limit (P_avail = {cap:.4} pu on S_rated)"),
             ctx,
         );
@@ -194,17 +199,17 @@ impl Der {
         ctx: &mut Context,
     ) -> bool {
         let (v, v_angle) = (s[self.v], s[self.v_angle]);
-        let st = rt.startup.as_mut().expect("waiting");
+        let st = rt.common.startup.as_mut().expect("waiting");
         let steady = h > 0.0 && ((v - st.v_last) / h).abs() < 0.5;
         st.v_last = v;
         if v >= s[self.v_sync] && steady {
             let since = *st.ok_since.get_or_insert(t);
             if t + h - since >= s[self.t_hold] {
-                rt.startup = None;
-                rt.t_sync = Some(t);
-                rt.v0 = v;
-                rt.theta0 = v_angle;
-                rt.e0 = v;
+                rt.common.startup = None;
+                rt.common.t_sync = Some(t);
+                rt.common.v0 = v;
+                rt.common.theta0 = v_angle;
+                rt.common.e0 = v;
                 match &mut rt.channel {
                     Channel::Forming(f) => {
                         f.e = v;
@@ -220,7 +225,7 @@ impl Der {
                 s[self.synchronized] = true;
                 ctx.event(format!(
                     "synchronized at t = {t:.4} s to v = {v:.4} pu; the set point ramps to {:.4} pu over {} s",
-                    rt.p0,
+                    rt.common.p0,
                     s[self.ramp]
                 ));
                 return true;

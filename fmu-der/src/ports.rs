@@ -78,7 +78,7 @@ pub const X_F: &str = "X_f";
 pub const ROT_RX: &str = "rot.rx";
 /// Parameter: available active power of the primary source at the start.
 pub const P_AVAIL0: &str = "P_avail0";
-/// Parameter: ADPF shape of the p-f channel (`kind::*`).
+/// Parameter: ADPF shape of the p-f channel (an [`AdpfKind`](crate::AdpfKind) code).
 pub const ADPF_P_KIND: &str = "adpf.p.kind";
 /// Parameter: p-f ADPF time constant.
 pub const ADPF_P_TAU: &str = "adpf.p.tau";

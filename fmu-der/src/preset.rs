@@ -1,23 +1,100 @@
-//! Start values of the paper's case-study units (wind, PV, BESS) that `[model] preset` selects.
+//! The named DER presets (`[model] preset`): a table of units and the start values each gives.
 
-use dvpp_control::CaseStudyI;
-use serde::{Deserialize, Serialize};
+use crate::{AdpfKind, Mode};
+use dvpp_control::MU_MIN_GFM;
+use dvpp_control::{active_gains, renormalize_with_floor};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-/// A case-study I unit (`docs/control.md` §9): wind and PV low-pass with `τ` = their `τ_dc` and dc
-/// gains proportional to their ratings, the BESS the complement of both; reactive ADPFs static,
-/// proportional to the reactive capacity at zero active power (the ratings).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-pub enum Preset {
-    Wind,
-    Pv,
-    Bess,
+/// The p-f ADPF a preset unit is given.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Shape {
+    /// A low-pass with `τ` = the unit's `τ_dc` and dc gain its share of the low-pass units'
+    /// ratings (floored, renormalized to sum 1).
+    LowPass,
+    /// The complement of all low-pass presets (their time constants and dc gains).
+    Complement,
+}
+
+/// A named unit: rating, dc side, dispatch and p-f ADPF shape. Reactive ADPFs are static,
+/// proportional to the unit's share of the presets' ratings (the reactive capacity at zero
+/// active power).
+#[derive(Debug, PartialEq)]
+pub struct Preset {
+    /// What `[model] preset` names it.
+    pub name: &'static str,
+    /// Rating, MVA.
+    pub s_rated: f64,
+    /// Time constant of the dc source, s (a low-pass unit's ADPF `τ` too).
+    pub tau_dc: f64,
+    /// Dispatch, pu on S_base.
+    pub p: f64,
+    /// Available power, pu on S_base.
+    pub p_avail0: f64,
+    /// The primary source can absorb power (a battery): dc source within ±P_avail.
+    pub storage: bool,
+    /// The p-f ADPF.
+    pub shape: Shape,
+}
+
+/// The presets: case study I's units (`docs/control.md` §9; values of
+/// [`dvpp_control::CaseStudyI`]). A new DER kind is one more entry.
+pub const PRESETS: &[Preset] = &[
+    Preset {
+        name: "wind",
+        s_rated: 46.0,
+        tau_dc: 1.5,
+        p: 0.2,
+        p_avail0: 0.4,
+        storage: false,
+        shape: Shape::LowPass,
+    },
+    Preset {
+        name: "pv",
+        s_rated: 73.0,
+        tau_dc: 0.6,
+        p: 0.3,
+        p_avail0: 0.6,
+        storage: false,
+        shape: Shape::LowPass,
+    },
+    Preset {
+        name: "bess",
+        s_rated: 60.0,
+        tau_dc: 0.2,
+        p: 0.1,
+        p_avail0: 0.6,
+        storage: true,
+        shape: Shape::Complement,
+    },
+];
+
+impl Preset {
+    /// The preset called `name`, or why there is none.
+    pub fn named(name: &str) -> Result<&'static Preset, String> {
+        PRESETS.iter().find(|p| p.name == name).ok_or_else(|| {
+            let names: Vec<_> = PRESETS.iter().map(|p| format!("\"{}\"", p.name)).collect();
+            format!("unknown preset \"{name}\": {}", names.join(", "))
+        })
+    }
+}
+
+impl Serialize for Preset {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.name)
+    }
+}
+
+impl<'de> Deserialize<'de> for &'static Preset {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let name = String::deserialize(d)?;
+        Preset::named(&name).map_err(serde::de::Error::custom)
+    }
 }
 
 /// Start values of one channel's ADPF parameters.
 #[derive(Debug, Clone)]
 pub struct AdpfDefaults {
-    pub kind: i32,
+    pub kind: AdpfKind,
     pub tau: f64,
     pub tau2: f64,
     pub order: i32,
@@ -27,7 +104,7 @@ pub struct AdpfDefaults {
 }
 
 impl AdpfDefaults {
-    fn of(kind: i32, tau: f64) -> Self {
+    fn of(kind: AdpfKind, tau: f64) -> Self {
         AdpfDefaults {
             kind,
             tau,
@@ -42,7 +119,7 @@ impl AdpfDefaults {
 /// Start values a preset gives (the rest are the generic unit's).
 #[derive(Debug, Clone)]
 pub struct UnitDefaults {
-    pub mode: i32,
+    pub mode: Mode,
     pub s_rated: f64,
     pub tau_dc: f64,
     pub p: f64,
@@ -77,10 +154,9 @@ impl UnitDefaults {
 
     /// The generic unit (no preset): a static ADPF `m = μ_p`, so that its frequency channel is
     /// `Δf = -1/(μ_p (H s + D)) Δp`; or the preset's unit.
-    pub fn of(preset: Option<Preset>) -> Self {
-        use crate::kind::{COMPLEMENT, LOW_PASS, STATIC};
+    pub fn of(preset: Option<&Preset>) -> Self {
         let generic = UnitDefaults {
-            mode: crate::GRID_FORMING,
+            mode: Mode::GridForming,
             s_rated: 60.0,
             tau_dc: 0.2,
             p: 0.3,
@@ -89,52 +165,98 @@ impl UnitDefaults {
             mu_q: 1.0,
             mu_p_lpf: Vec::new(),
             storage: false,
-            adpf_p: AdpfDefaults::of(STATIC, 1.0),
-            adpf_q: AdpfDefaults::of(STATIC, 1.0),
+            adpf_p: AdpfDefaults::of(AdpfKind::Static, 1.0),
+            adpf_q: AdpfDefaults::of(AdpfKind::Static, 1.0),
         };
         let Some(preset) = preset else {
             return generic;
         };
+        let total: f64 = PRESETS.iter().map(|u| u.s_rated).sum();
+        let (low_pass, gains) = low_pass_gains();
+        let common = UnitDefaults {
+            s_rated: preset.s_rated,
+            tau_dc: preset.tau_dc,
+            p: preset.p,
+            p_avail0: preset.p_avail0,
+            mu_q: preset.s_rated / total,
+            storage: preset.storage,
+            ..generic
+        };
+        match preset.shape {
+            Shape::LowPass => {
+                let k = low_pass
+                    .iter()
+                    .position(|u| *u == preset)
+                    .expect("a low-pass preset is in the table");
+                UnitDefaults {
+                    mu_p: gains[k],
+                    adpf_p: AdpfDefaults::of(AdpfKind::LowPass, preset.tau_dc),
+                    ..common
+                }
+            }
+            Shape::Complement => UnitDefaults {
+                mu_p: 0.0,
+                mu_p_lpf: gains,
+                adpf_p: AdpfDefaults {
+                    lpf_tau: low_pass.iter().map(|u| u.tau_dc).collect(),
+                    ..AdpfDefaults::of(AdpfKind::Complement, 1.0)
+                },
+                ..common
+            },
+        }
+    }
+}
+
+/// The low-pass presets and their nominal dc gains: proportional to their ratings, floored at
+/// [`MU_MIN_GFM`] (grid-forming units) and renormalized to sum 1.
+fn low_pass_gains() -> (Vec<&'static Preset>, Vec<f64>) {
+    let units: Vec<&Preset> = PRESETS
+        .iter()
+        .filter(|u| u.shape == Shape::LowPass)
+        .collect();
+    let ratings: Vec<f64> = units.iter().map(|u| u.s_rated).collect();
+    let raw = active_gains(&ratings).unwrap_or_else(|_| vec![0.0; units.len()]);
+    let gains = renormalize_with_floor(&raw, &vec![true; units.len()], MU_MIN_GFM)
+        .expect("nominal gains are feasible");
+    (units, gains)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use dvpp_control::CaseStudyI;
+
+    /// The table holds case study I's values: ratings, time constants, nominal gains.
+    #[test]
+    fn presets_are_case_study_one() {
         let cs = CaseStudyI::new();
         let [mu_wind, mu_pv] = cs.nominal_active_gains();
         let total: f64 = cs.s_rated.iter().sum();
-        let share = |k: usize| cs.s_rated[k] / total;
-        match preset {
-            Preset::Wind => UnitDefaults {
-                s_rated: cs.s_rated[0],
-                tau_dc: cs.tau_wind,
-                p: 0.2,
-                p_avail0: 0.4,
-                mu_p: mu_wind,
-                mu_q: share(0),
-                adpf_p: AdpfDefaults::of(LOW_PASS, cs.tau_wind),
-                ..generic
-            },
-            Preset::Pv => UnitDefaults {
-                s_rated: cs.s_rated[1],
-                tau_dc: cs.tau_pv,
-                p: 0.3,
-                p_avail0: 0.6,
-                mu_p: mu_pv,
-                mu_q: share(1),
-                adpf_p: AdpfDefaults::of(LOW_PASS, cs.tau_pv),
-                ..generic
-            },
-            Preset::Bess => UnitDefaults {
-                s_rated: cs.s_rated[2],
-                tau_dc: cs.tau_bess_dc,
-                p: 0.1,
-                p_avail0: 0.6,
-                mu_p: 0.0,
-                mu_q: share(2),
-                mu_p_lpf: vec![mu_wind, mu_pv],
-                storage: true,
-                adpf_p: AdpfDefaults {
-                    lpf_tau: vec![cs.tau_wind, cs.tau_pv],
-                    ..AdpfDefaults::of(COMPLEMENT, 1.0)
-                },
-                ..generic
-            },
+        let at = |name| UnitDefaults::of(Some(Preset::named(name).unwrap()));
+        let (wind, pv, bess) = (at("wind"), at("pv"), at("bess"));
+        assert_eq!(
+            [wind.s_rated, pv.s_rated, bess.s_rated],
+            cs.s_rated,
+            "ratings"
+        );
+        assert_eq!(
+            [wind.tau_dc, pv.tau_dc, bess.tau_dc],
+            [cs.tau_wind, cs.tau_pv, cs.tau_bess_dc]
+        );
+        assert_eq!([wind.adpf_p.tau, pv.adpf_p.tau], [cs.tau_wind, cs.tau_pv]);
+        assert_eq!([wind.mu_p, pv.mu_p, bess.mu_p], [mu_wind, mu_pv, 0.0]);
+        assert_eq!(bess.mu_p_lpf, vec![mu_wind, mu_pv]);
+        assert_eq!(bess.adpf_p.lpf_tau, vec![cs.tau_wind, cs.tau_pv]);
+        for (u, s) in [&wind, &pv, &bess].iter().zip(cs.s_rated) {
+            assert_eq!(u.mu_q, s / total);
         }
+        assert!(bess.storage && !wind.storage && !pv.storage);
+        assert_eq!(bess.adpf_p.kind, AdpfKind::Complement);
+    }
+
+    #[test]
+    fn unknown_presets_are_named() {
+        let e = Preset::named("hydro").unwrap_err();
+        assert!(e.contains("hydro") && e.contains("\"wind\""), "{e}");
     }
 }

@@ -216,7 +216,7 @@ fn split_ders(ders: &[DerSpec], eps: f64) -> Vec<DerSpec> {
                 let preset = d
                     .preset
                     .as_deref()
-                    .and_then(|p| Value::String(p.into()).try_into::<fmu_der::Preset>().ok());
+                    .and_then(|p| fmu_der::Preset::named(p).ok());
                 if let Some(p) = preset {
                     let u = fmu_der::UnitDefaults::of(Some(p));
                     let gains = [
@@ -515,12 +515,13 @@ const OPERATOR_FMU: (&str, &str) = ("fmu-operator", "dvpp_operator");
 /// The operator role of a DER from its p-f ADPF kind (`adpf.p.kind`).
 fn role_of(md: &ModelDescription, der: &str) -> Result<Role, String> {
     let kind = start_of(md, der::ADPF_P_KIND).ok_or(format!("DER '{der}': no adpf.p.kind"))?;
-    Ok(match kind as i32 {
-        fmu_der::kind::STATIC | fmu_der::kind::LOW_PASS => Role::LowPass,
-        fmu_der::kind::HIGH_PASS => Role::HighPass,
-        fmu_der::kind::BAND_PASS => Role::BandPass,
-        fmu_der::kind::COMPLEMENT => Role::Complement,
-        k => return Err(format!("DER '{der}': unknown adpf.p.kind {k}")),
+    let kind = fmu_der::AdpfKind::from_code(kind as i32)
+        .map_err(|e| format!("DER '{der}': adpf.p.kind {e}"))?;
+    Ok(match kind {
+        fmu_der::AdpfKind::Static | fmu_der::AdpfKind::LowPass => Role::LowPass,
+        fmu_der::AdpfKind::HighPass => Role::HighPass,
+        fmu_der::AdpfKind::BandPass => Role::BandPass,
+        fmu_der::AdpfKind::Complement => Role::Complement,
     })
 }
 
@@ -856,11 +857,11 @@ impl Job<'_, '_> {
             }
             let forming = slot.kind == fmu_grid::DerKind::GridForming;
             let mode = if forming {
-                fmu_der::GRID_FORMING
+                fmu_der::Mode::GridForming
             } else {
-                fmu_der::GRID_FOLLOWING
+                fmu_der::Mode::GridFollowing
             };
-            start.insert(der::MODE.into(), Value::Integer(mode.into()));
+            start.insert(der::MODE.into(), Value::Integer(mode.code().into()));
             // The slot's rating and impedance, so that E∠θ starts behind the grid's own impedance.
             let o = &grid.pf.der[k];
             for (n, x) in [

@@ -1,0 +1,187 @@
+//! The grid-forming step: `Δf = -T_pf/m Δp` sets the angle, a PI on `E` makes `q` track its reference.
+
+use crate::limits;
+use crate::runtime::Common;
+use crate::step::{Outcome, StepPoint};
+use crate::{err, AdpfKind, Der};
+use dvpp_control::{Complex, GfmPfModel};
+use fmi_export::{ModelError, Store};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// The grid-forming controller state.
+#[derive(Clone, Serialize, Deserialize)]
+pub(crate) struct Forming {
+    pub(crate) pf: GfmPfModel,
+    /// Integral part of the PI matching controller on `E`.
+    pub(crate) e_int: f64,
+    /// The internal voltage node `E∠θ` the controls set; the converter imposes it unless a
+    /// limit acts.
+    pub(crate) e: f64,
+    pub(crate) theta: f64,
+    /// The angle's increment over the last step and its mean over `ANGLE_MEAN_TAU` (the part
+    /// the grid frequency explains): their difference is the angle move the next measured
+    /// power does not yet show (the current-limited mode's delay compensation).
+    pub(crate) dtheta: f64,
+    pub(crate) dtheta_mean: f64,
+}
+
+/// Grid-forming, current-limited mode: the fraction of the limited power's change that the
+/// angle's last move makes (at the measured bus voltage) which the controls add to the measured
+/// power. The loop through the feedthrough of T_pf/m, with gain `g_net` per step through the
+/// network and `c` = this fraction of its gain at a fixed bus voltage, has the characteristic
+/// `z² - (1 - c) z + (g_net - c)` (without the compensation `z² - z + g_net`, roots of modulus
+/// `√g_net`: 0.97 for case study I's wind). For that wind (`c` = 0.58) both roots stay within
+/// 0.8 for `g_net` from 0.3 to 1.2.
+const DELAY_COMPENSATION: f64 = 0.5;
+
+/// Time constant of the mean angle increment (s).
+const ANGLE_MEAN_TAU: f64 = 0.02;
+
+impl Der {
+    /// The grid-forming controls over one step: angle, voltage magnitude and the limits of the
+    /// converter's output stage.
+    pub(crate) fn step_forming(
+        &self,
+        f: &mut Forming,
+        rt: &mut Common,
+        s: &mut Store,
+        at: &StepPoint,
+    ) -> Result<Outcome, ModelError> {
+        let StepPoint {
+            h,
+            dv,
+            to_dvpp,
+            to_rated,
+            p_set,
+            lpf,
+            v,
+            v_angle,
+            budget,
+            i_max,
+            ..
+        } = *at;
+        match rt.p_kind {
+            AdpfKind::Static | AdpfKind::LowPass => {
+                f.pf.set_mu(s[self.mu_p]).map_err(|e| err("mu_p", e))?;
+            }
+            AdpfKind::Complement => {
+                f.pf.set_lpf_gains(&lpf[..rt.n_lpf])
+                    .map_err(|e| err("mu_p_lpf", e))?;
+            }
+            // No dc gain: the shape is all there is.
+            AdpfKind::HighPass | AdpfKind::BandPass => {}
+        }
+        // The controls see the power the internal voltage delivers: the measurement
+        // plus what the limits withheld. While a current or dc limit episode is on (the
+        // current-limited mode, left 1 s after the limit last acted) also the change of
+        // the limited power that the node's last move of angle makes and the measurement
+        // does not show yet: the measurement reflects the angle sent one communication
+        // step earlier, and through the direct feedthrough of T_pf/m (a low-pass unit's
+        // τ/(μ H)) that loop has a gain per step near 1 (2π f_nom h |D| (S_base/S_dvpp)
+        // E V/|Z| = 1.16 for case study I's wind at a fixed bus voltage; about 0.94
+        // through the network, from its ringing after case study I's load step, which
+        // decays by 0.97 per step). With the delay that is a 60°-per-step mode at the edge of
+        // stability, which the limiter, switching between limited and free from one step
+        // to the next, kept going. Half of the move's effect (`DELAY_COMPENSATION`),
+        // computed with the limiter at the measured bus voltage (nothing while the dc
+        // budget holds the power), keeps the loop damped over its range of gains. The
+        // grid frequency's share of the move (its mean over `ANGLE_MEAN_TAU`) moves the
+        // bus too and is left out. Below the limits nothing changes.
+        // Rotational control: both channels see p', q' and the set point rotated (the
+        // identity at rot.rx = 0).
+        let compensation = if rt.limit.current.active() || rt.limit.dc.active() {
+            // The limited power at the measured bus voltage, from the node E∠θ.
+            let (r, x) = self.slot_impedance(s);
+            let z = Complex::new(r, x);
+            let bus = Complex::from_polar(s[self.v], s[self.v_angle]);
+            let u = if s[self.v] > limits::V_FLOOR {
+                bus / s[self.v]
+            } else {
+                Complex::from_polar(1.0, f.theta)
+            };
+            let budget = rt.dc.ac_budget();
+            let limited = |theta: f64| {
+                let wanted = (Complex::from_polar(s[self.e], theta) - bus) / z;
+                let i = limits::saturate_forming(
+                    wanted * to_rated,
+                    u,
+                    s[self.v],
+                    s[self.i_max],
+                    budget,
+                )
+                .current;
+                (bus * (i / to_rated).conj()).re
+            };
+            let moved = f.dtheta - f.dtheta_mean;
+            DELAY_COMPENSATION * (limited(f.theta) - limited(f.theta - moved))
+        } else {
+            0.0
+        };
+        let (p_fb, q_fb) = rt.rot.rotate(
+            s[self.p] + rt.withheld.0 + compensation,
+            s[self.q] + rt.withheld.1,
+        );
+        let (p_set_rot, q_set_rot) = rt.rot.rotate(p_set, rt.q0);
+        let dp = (p_fb - p_set_rot) * to_dvpp;
+        s[self.p_ref] = p_set;
+        let (df, df_int) = f.pf.step_with_integral(dp, h);
+        s[self.df] = df;
+        f.dtheta = 2.0 * PI * s[self.f_nom] * df_int;
+        f.theta += f.dtheta;
+        f.dtheta_mean += -(-h / ANGLE_MEAN_TAU).exp_m1() * (f.dtheta - f.dtheta_mean);
+        // PI matching controller on E: q tracks the reference held over the step.
+        // E within [0, E_max]; the integrator stops while the limit holds (anti-windup).
+        let e = rt.q_ref - q_fb;
+        let e_max = s[self.e_max];
+        let integral = f.e_int + s[self.qpi_ki] * e * h;
+        let unclamped = rt.e0 + s[self.qpi_kp] * e + integral;
+        f.e = unclamped.clamp(0.0, e_max);
+        if unclamped == f.e {
+            f.e_int = integral;
+        }
+        rt.q_ref = q_set_rot + rt.vq.step(dv, h) / to_dvpp;
+        // Reported as the q at which q' meets its reference at the measured p'.
+        s[self.q_ref] = rt.rot.unrotate(p_fb, rt.q_ref).1;
+        // The converter imposes the internal voltage, within the modulation limit; its
+        // output stage holds the current within I_max and the active power within the
+        // dc link's budget (enforced in the network solution, `i_limit`, `p_min`,
+        // `p_max`). What the limits hold back, estimated at the measured bus voltage,
+        // is added to the measurements the controls see.
+        let e_cap = s[self.e_max] * rt.dc.v_dc();
+        let modulation = f.e > e_cap;
+        let e_out = f.e.min(e_cap);
+        let (r, x) = self.slot_impedance(s);
+        let z = Complex::new(r, x);
+        let bus = Complex::from_polar(v, v_angle);
+        let wanted = (Complex::from_polar(e_out, f.theta) - bus) / z;
+        let u = if v > limits::V_FLOOR {
+            bus / v
+        } else {
+            Complex::from_polar(1.0, f.theta)
+        };
+        let lim = limits::saturate_forming(wanted * to_rated, u, v, i_max, budget);
+        // Its gain: the feedback closes a loop through the direct feedthrough `D` of
+        // T_pf/m whose gain over one step, 2π f_nom h |D| (S_base/S_dvpp) E V/|Z|, can
+        // exceed 1 (a low-pass unit, τ/(μ H)); the gain is cut to keep that loop at 0.5.
+        rt.withheld = if lim.current_limit || lim.dc_limit {
+            let held = bus * (wanted - lim.current / to_rated).conj();
+            let feedthrough = f.pf.simulator().system().d()[0].abs();
+            let loop_gain =
+                2.0 * PI * s[self.f_nom] * h * feedthrough * to_dvpp * e_out * v / z.norm();
+            let kappa = (0.5 / loop_gain).min(1.0);
+            (kappa * held.re, kappa * held.im)
+        } else {
+            (0.0, 0.0)
+        };
+        s[self.e] = e_out;
+        s[self.theta] = f.theta;
+        let request = (wanted * to_rated).norm() / i_max;
+        Ok(Outcome {
+            current_limit: lim.current_limit,
+            dc_limit: lim.dc_limit,
+            request,
+            modulation,
+        })
+    }
+}

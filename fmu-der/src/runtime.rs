@@ -1,0 +1,421 @@
+//! The per-instance runtime state: what `initialize` builds from the parameters, and its outputs.
+
+use crate::dc::{DcParams, DcSide};
+use crate::following::Following;
+use crate::forming::Forming;
+use crate::limits::{self, Episode};
+use crate::{err, positive, AdpfKind, Der, Mode, MAX_LPF};
+use dvpp_control::phasor::internal_voltage;
+use dvpp_control::{
+    Adpf, GflFpModel, GfmPfModel, Hold, LtiSimulator, Rotation, StateSpace, TDes, VqModel,
+};
+use fmi_export::{Context, ModelError, Store};
+use nalgebra::{DMatrix, DVector};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+#[derive(Clone, Serialize, Deserialize)]
+pub(crate) enum Channel {
+    Forming(Box<Forming>),
+    Following(Box<Following>),
+}
+
+/// Everything `initialize` builds from the parameters.
+#[derive(Clone, Serialize, Deserialize)]
+pub(crate) struct Runtime {
+    pub(crate) channel: Channel,
+    pub(crate) common: Common,
+}
+
+/// The state both channels share.
+#[derive(Clone, Serialize, Deserialize)]
+pub(crate) struct Common {
+    pub(crate) vq: VqModel,
+    pub(crate) dc: DcSide,
+    /// Kind of the p-f ADPF (which gains the inputs set).
+    pub(crate) p_kind: AdpfKind,
+    pub(crate) n_lpf: usize,
+    pub(crate) q_kind: AdpfKind,
+    pub(crate) p0: f64,
+    pub(crate) q0: f64,
+    pub(crate) v0: f64,
+    pub(crate) e0: f64,
+    pub(crate) theta0: f64,
+    /// Grid-following: the PLL frequency held over the next step.
+    pub(crate) df_held: f64,
+    /// Grid-forming: the reactive reference held over the next step, rotated (`q'`; `q` when
+    /// `rot.rx` = 0).
+    pub(crate) q_ref: f64,
+    /// `(p, q) ↔ (p', q')` for the lines' R/X (`rot.rx`; the identity at 0).
+    pub(crate) rot: Rotation,
+    /// Power the limits withheld at the last step (what the internal voltage would have
+    /// delivered minus what the converter imposed), on S_base: the controls see the unlimited
+    /// power, so the internal node stays synchronized while limited.
+    pub(crate) withheld: (f64, f64),
+    /// Waiting for the terminal voltage (a start from zero voltage); `None` once synchronized.
+    pub(crate) startup: Option<Startup>,
+    /// Time of synchronization after a start from zero voltage (the set point ramps from there).
+    pub(crate) t_sync: Option<f64>,
+    pub(crate) limit: LimitEpisodes,
+    /// Warning already given in this episode.
+    pub(crate) warned_gains: bool,
+}
+
+/// A unit waiting for the voltage to appear.
+#[derive(Clone, Serialize, Deserialize)]
+pub(crate) struct Startup {
+    /// Since when the voltage has been above `startup.v_sync` and steady.
+    pub(crate) ok_since: Option<f64>,
+    pub(crate) v_last: f64,
+}
+
+/// The episodes of each limit (the `limit.*` outputs).
+#[derive(Clone, Default, Serialize, Deserialize)]
+pub(crate) struct LimitEpisodes {
+    pub(crate) current: Episode,
+    pub(crate) dc: Episode,
+    pub(crate) source: Episode,
+    pub(crate) modulation: Episode,
+}
+
+impl Channel {
+    /// The mode the channel realizes.
+    pub(crate) fn mode(&self) -> Mode {
+        match self {
+            Channel::Forming(_) => Mode::GridForming,
+            Channel::Following(_) => Mode::GridFollowing,
+        }
+    }
+}
+
+/// Exact ZOH model of the PLL: `e = v_angle - θ_pll`, `Δω = k_p e + k_i ∫e`, `θ_pll' = Δω`;
+/// outputs `Δf_pll = Δω/(2π f_nom)` (pu) and `θ_pll`.
+pub(crate) fn pll_model(kp: f64, ki: f64, f_nom: f64) -> StateSpace {
+    let w = 2.0 * PI * f_nom;
+    StateSpace::new(
+        DMatrix::from_row_slice(2, 2, &[0.0, -1.0, ki, -kp]),
+        DVector::from_column_slice(&[1.0, kp]),
+        DMatrix::from_row_slice(2, 2, &[ki / w, -kp / w, 0.0, 1.0]),
+        DVector::from_column_slice(&[kp / w, 0.0]),
+    )
+    .expect("PLL realization")
+}
+
+impl Der {
+    pub(crate) fn lpf_gains(&self, s: &Store) -> [f64; MAX_LPF] {
+        let mut out = [0.0; MAX_LPF];
+        for (o, &r) in out.iter_mut().zip(&self.mu_p_lpf) {
+            *o = s[r];
+        }
+        out
+    }
+
+    pub(crate) fn available(&self, s: &Store, t: f64) -> f64 {
+        let step = if t >= s[self.avail_t] {
+            s[self.avail_dp]
+        } else {
+            0.0
+        };
+        (s[self.p_avail0] + step).max(0.0)
+    }
+
+    pub(crate) fn build(
+        &self,
+        s: &mut Store,
+        ctx: &mut Context,
+        again: Option<bool>,
+    ) -> Result<Runtime, ModelError> {
+        for (r, name) in [
+            (self.s_rated, "S_rated"),
+            (self.s_base, "S_base"),
+            (self.s_dvpp, "S_dvpp"),
+            (self.f_nom, "f_nom"),
+            (self.x_f, "X_f"),
+        ] {
+            positive(s, r, name)?;
+        }
+        let (h, d) = (s[self.h], s[self.d]);
+        if h < 0.0 {
+            return Err(err(
+                "Tdes.H",
+                format!("= {h}: T_pf = 1/(H s + D) is unstable"),
+            ));
+        }
+        if h != 0.0 && !h.is_normal() {
+            return Err(err(
+                "Tdes.H",
+                format!(
+                    "= {h:e}: must be 0 or at least {:e} (a subnormal inertia overflows T_pf = 1/(H s + D))",
+                    f64::MIN_POSITIVE
+                ),
+            ));
+        }
+        if d <= 0.0 {
+            return Err(err(
+                "Tdes.D",
+                format!("= {d}: T_pf = 1/(H s + D) is not stable (needs D > 0)"),
+            ));
+        }
+        let dq = positive(s, self.dq, "Tdes.Dq")?;
+        let tau_q = positive(s, self.tau_q, "Tdes.tau_q")?;
+        let tdes = TDes::inertia_droop(h, d, dq, tau_q).map_err(|e| err("Tdes", e))?;
+
+        let lpf = self.lpf_gains(s);
+        let adpf_p = self.adpf_p.build(s, s[self.mu_p], &lpf)?;
+        let adpf_q = self.adpf_q.build(s, s[self.mu_q], &[])?;
+        let p_kind = self.adpf_p.kind(s)?;
+        let order_name = self.adpf_p.name("order");
+
+        let pll_tau = positive(s, self.pll_tau, "pll.tau")?;
+        let pll_order = s[self.pll_order] as u32;
+        let mode = Mode::from_code(s[self.mode]).map_err(|e| err("mode", e))?;
+        let (channel, vq) = match mode {
+            Mode::GridForming => {
+                // A grid-forming unit cannot have (near) zero p-f participation: its floor
+                // bounds its p-f stiffness on its own rating (the operator's floor alike).
+                let mu_min = dvpp_control::mu_min_gfm(s[self.s_rated], s[self.s_dvpp]);
+                let adpf = match &adpf_p {
+                    Adpf::LowPass(spec) if spec.mu < mu_min => {
+                        adpf_p.with_mu(mu_min).expect("valid gain")
+                    }
+                    a => a.clone(),
+                };
+                let pf = GfmPfModel::with_floor(&tdes, &adpf, mu_min).map_err(|e| {
+                    err(
+                        &order_name,
+                        format!("the grid-forming reference T_pf/m is not realizable: {e}"),
+                    )
+                })?;
+                pf.check_stability()
+                    .map_err(|e| err(&self.adpf_p.name("kind"), e))?;
+                let vq = VqModel::grid_forming_shaped(&tdes, &adpf_q)
+                    .map_err(|e| err(&self.adpf_q.name("kind"), e))?;
+                let forming = Forming {
+                    pf,
+                    e_int: 0.0,
+                    e: 0.0,
+                    theta: 0.0,
+                    dtheta: 0.0,
+                    dtheta_mean: 0.0,
+                };
+                (Channel::Forming(Box::new(forming)), vq)
+            }
+            Mode::GridFollowing => {
+                let fp = GflFpModel::new(&tdes, &adpf_p, pll_tau, pll_order).map_err(|e| {
+                    err(
+                        "pll.order",
+                        format!("the grid-following reference m T_pf^-1/(tau_pll s + 1)^d is not proper: {e}"),
+                    )
+                })?;
+                fp.check_stability()
+                    .map_err(|e| err(&self.adpf_p.name("kind"), e))?;
+                // The v-q reference keeps a first-order roll-off: more lag in that loop (gain
+                // X_th/Dq) would destabilize it; its dominant lag is `vq.tau`.
+                let vq = VqModel::grid_following_shaped(&tdes, &adpf_q, pll_tau, 1)
+                    .map_err(|e| err(&self.adpf_q.name("kind"), e))?;
+                let (kp, ki) = (s[self.pll_kp], s[self.pll_ki]);
+                if !(kp > 0.0 && ki > 0.0) {
+                    return Err(err(
+                        "pll.kp",
+                        format!("PLL gains kp = {kp}, ki = {ki} must be > 0"),
+                    ));
+                }
+                let mut pll = LtiSimulator::new(pll_model(kp, ki, s[self.f_nom]), Hold::Zero);
+                pll.set_state(&[0.0, s[self.v_angle]], s[self.v_angle])
+                    .expect("PLL state");
+                let following = Following {
+                    fp,
+                    pll,
+                    current: (0.0, 0.0),
+                    dv: 0.0,
+                    gains: (kp, ki),
+                };
+                (Channel::Following(Box::new(following)), vq)
+            }
+        };
+
+        let dc = self.dc_params(s)?;
+        if again.is_none() {
+            ctx.event(format!(
+                "dc-voltage control: damping ratio {:.3} without the capacitor-power term, {:.3} with k_d = {:.3}",
+                dc.damping(0.0),
+                dc.damping(dc.k_d()),
+                dc.k_d()
+            ));
+        }
+        positive(s, self.i_max, "I_max")?;
+        positive(s, self.e_max, "E_max")?;
+
+        // Operating point and the internal voltage behind the transformer (the slot impedance).
+        let (r, x) = self.slot_impedance(s);
+        let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
+        // Below `startup.v_sync` the unit waits for the voltage (a start from zero voltage).
+        let waiting = v < s[self.v_sync];
+        let (e0, theta0) = if waiting {
+            (v, s[self.v_angle])
+        } else {
+            internal_voltage(p, q, v, s[self.v_angle], r, x)
+        };
+        let p_ac = if waiting {
+            0.0
+        } else {
+            self.converter_power(s, r, mode)
+        };
+        let rot = Rotation::from_rx(s[self.rot_rx]).map_err(|e| err("rot.rx", e))?;
+        let common = Common {
+            vq,
+            dc: DcSide::new(dc, p_ac),
+            p_kind,
+            n_lpf: self.adpf_p.n_lpf.map_or(0, |n| s[n] as usize),
+            q_kind: self.adpf_q.kind(s)?,
+            p0: p,
+            q0: if waiting { 0.0 } else { q },
+            v0: v,
+            e0,
+            theta0,
+            df_held: 0.0,
+            q_ref: if waiting { 0.0 } else { rot.rotate(p, q).1 },
+            rot,
+            withheld: (0.0, 0.0),
+            startup: waiting.then_some(Startup {
+                ok_since: None,
+                v_last: v,
+            }),
+            t_sync: None,
+            limit: LimitEpisodes::default(),
+            warned_gains: again.unwrap_or(false),
+        };
+        let mut rt = Runtime { channel, common };
+        match &mut rt.channel {
+            Channel::Forming(f) => {
+                f.e = e0;
+                f.theta = theta0;
+            }
+            Channel::Following(g) if !waiting => {
+                let to_rated = s[self.s_base] / s[self.s_rated];
+                g.current = (p * to_rated / v, q * to_rated / v);
+            }
+            Channel::Following(_) => {}
+        }
+        s[self.theta] = match &rt.channel {
+            Channel::Forming(_) => theta0,
+            Channel::Following(_) => s[self.v_angle],
+        };
+        s[self.e] = e0;
+        s[self.df] = 0.0;
+        s[self.p_ref] = if waiting { 0.0 } else { p };
+        s[self.p_set] = s[self.p_ref];
+        s[self.q_ref] = if waiting { 0.0 } else { q };
+        s[self.p_avail] = self.available(s, 0.0);
+        s[self.synchronized] = !waiting;
+        if waiting && again.is_none() {
+            ctx.event(format!(
+                "v = {v:.4} pu < startup.v_sync = {:.4} pu: waiting for the terminal voltage",
+                s[self.v_sync]
+            ));
+        }
+        let limit = self.headroom_limit(s, 0.0);
+        if p > limit + 1e-12 && again.is_none() {
+            ctx.warn(format!(
+                "dispatch p = {p:.4} pu is above deload * P_avail - G_dc = {limit:.4} pu: the set point is curtailed from the first step"
+            ));
+        }
+        self.write_dc(s, &rt);
+        self.write_limits(s, &rt);
+        self.write_rotated(s, &rt);
+        Ok(rt)
+    }
+
+    /// The dc side's parameters, checked.
+    pub(crate) fn dc_params(&self, s: &Store) -> Result<DcParams, ModelError> {
+        let tau = positive(s, self.tau_dc, "tau_dc")?;
+        let c = positive(s, self.c_dc, "C_dc")?;
+        let t_budget = positive(s, self.t_budget, "dc.t_budget")?;
+        let (v_min, v_max) = (s[self.v_dc_min], s[self.v_dc_max]);
+        if !((0.0..1.0).contains(&v_min) && v_max > 1.0) {
+            return Err(err(
+                "v_dc_min",
+                format!("= {v_min} with v_dc_max = {v_max}: needs 0 <= v_dc_min < 1 < v_dc_max"),
+            ));
+        }
+        Ok(DcParams {
+            tau,
+            c,
+            g: s[self.g_dc],
+            k_dc: s[self.k_dc],
+            zeta: s[self.dc_zeta],
+            storage: s[self.storage],
+            v_min,
+            v_max,
+            t_budget,
+        })
+    }
+
+    /// The slot impedance `R_f + j X_f` on S_base.
+    pub(crate) fn slot_impedance(&self, s: &Store) -> (f64, f64) {
+        let zbase = s[self.s_base] / s[self.s_rated];
+        (s[self.r_f] * zbase, s[self.x_f] * zbase)
+    }
+
+    /// The power the converter's ac side draws from its dc link, pu on S_rated: the measured
+    /// terminal power and, for a grid-forming unit, the loss in `R_f` between them.
+    pub(crate) fn converter_power(&self, s: &Store, r: f64, mode: Mode) -> f64 {
+        let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
+        let r_loss = if mode == Mode::GridForming && v > 0.0 {
+            r * (p * p + q * q) / (v * v)
+        } else {
+            0.0
+        };
+        (p + r_loss) * s[self.s_base] / s[self.s_rated]
+    }
+
+    /// The dc side's outputs.
+    pub(crate) fn write_dc(&self, s: &mut Store, rt: &Runtime) {
+        let (s_base, s_rated) = (s[self.s_base], s[self.s_rated]);
+        s[self.v_dc] = rt.common.dc.v_dc();
+        s[self.p_dc] = rt.common.dc.p_src() * s_rated / s_base;
+        // Energies in MJ: pu·s on S_rated times S_rated in MVA.
+        s[self.e_src] = rt.common.dc.e_src * s_rated;
+        s[self.e_ac] = rt.common.dc.e_ac * s_rated;
+        s[self.e_loss] = rt.common.dc.e_loss * s_rated;
+        s[self.w_dc] = rt.common.dc.energy() * s_rated;
+        let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
+        // At a dead bus no power flows: inputs that say otherwise are start values, not a current.
+        s[self.i_ac] = if v < limits::V_FLOOR {
+            0.0
+        } else {
+            p.hypot(q) / v * s_base / s_rated
+        };
+        // The dc budget at the terminal: less the R_f loss at the present current.
+        let (r, _) = self.slot_impedance(s);
+        let r_loss = if rt.channel.mode() == Mode::GridForming {
+            r * (p * p + q * q) / v.max(limits::V_FLOOR).powi(2)
+        } else {
+            0.0
+        };
+        let (lo, hi) = rt.common.dc.ac_budget();
+        s[self.p_min] = lo * s_rated / s_base - r_loss;
+        s[self.p_max] = hi * s_rated / s_base - r_loss;
+        s[self.i_limit] = s[self.i_max];
+    }
+
+    /// The measured rotated powers `p'`, `q'` (outputs `p_rot`, `q_rot`).
+    pub(crate) fn write_rotated(&self, s: &mut Store, rt: &Runtime) {
+        let (p_rot, q_rot) = rt.common.rot.rotate(s[self.p], s[self.q]);
+        s[self.p_rot] = p_rot;
+        s[self.q_rot] = q_rot;
+    }
+
+    /// The limit flags.
+    pub(crate) fn write_limits(&self, s: &mut Store, rt: &Runtime) {
+        s[self.limit_current] = rt.common.limit.current.active();
+        s[self.limit_dc] = rt.common.limit.dc.active();
+        s[self.limit_source] = rt.common.limit.source.active();
+        s[self.limit_modulation] = rt.common.limit.modulation.active();
+    }
+
+    /// The highest set point the primary source allows at `t`: `deload · P_avail - G_dc`, on S_base.
+    pub(crate) fn headroom_limit(&self, s: &Store, t: f64) -> f64 {
+        s[self.deload] * self.available(s, t) - s[self.g_dc] * s[self.s_rated] / s[self.s_base]
+    }
+}

@@ -8,71 +8,9 @@
 
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, BTreeSet, VecDeque};
-use std::fmt;
 
-/// Everything that can be wrong with a case file.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub enum CaseError {
-    /// TOML syntax or schema error (missing field, unknown model type, wrong value type).
-    Parse(String),
-    /// No bus at all, or a bus id defined twice.
-    DuplicateBus(u32),
-    /// The case has no bus.
-    NoBus,
-    /// An element refers to a bus that is not defined.
-    UnknownBus { element: String, bus: u32 },
-    /// An element refers to a machine, slot or branch that is not defined.
-    UnknownReference { element: String, name: String },
-    /// Two elements share a name that must be unique.
-    DuplicateName(String),
-    /// Series impedance zero or negative (x ≤ 0 or r < 0 or |z| = 0).
-    NonPositiveImpedance { element: String, r: f64, x: f64 },
-    /// A bus cannot be reached from the slack bus through in-service branches.
-    IslandedBus(u32),
-    /// Exactly one slack bus is required.
-    Slack(String),
-    /// A parameter is outside its admissible range.
-    OutOfRange {
-        element: String,
-        parameter: String,
-        value: f64,
-        expected: String,
-    },
-    /// A structural inconsistency (PV bus without a source, exciter on a classical machine...).
-    Inconsistent(String),
-}
-
-impl fmt::Display for CaseError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            CaseError::Parse(m) => write!(f, "case file could not be parsed: {m}"),
-            CaseError::DuplicateBus(b) => write!(f, "bus {b} is defined more than once"),
-            CaseError::NoBus => write!(f, "the case defines no bus"),
-            CaseError::UnknownBus { element, bus } => {
-                write!(f, "{element} refers to bus {bus}, which is not defined")
-            }
-            CaseError::UnknownReference { element, name } => {
-                write!(f, "{element} refers to `{name}`, which is not defined")
-            }
-            CaseError::DuplicateName(n) => write!(f, "name `{n}` is used more than once"),
-            CaseError::NonPositiveImpedance { element, r, x } => write!(
-                f,
-                "{element} has a non-positive series impedance (r = {r}, x = {x}); need r >= 0, x > 0"
-            ),
-            CaseError::IslandedBus(b) => {
-                write!(f, "bus {b} is islanded (not connected to the slack bus)")
-            }
-            CaseError::Slack(m) => write!(f, "slack bus: {m}"),
-            CaseError::OutOfRange { element, parameter, value, expected } => write!(
-                f,
-                "{element}: parameter `{parameter}` = {value} is out of range (expected {expected})"
-            ),
-            CaseError::Inconsistent(m) => write!(f, "inconsistent case: {m}"),
-        }
-    }
-}
-
-impl std::error::Error for CaseError {}
+pub use crate::error::CaseError;
+pub(crate) use crate::error::{check_range, nonneg, pos};
 
 /// Power-flow type of a bus.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -411,35 +349,9 @@ pub struct BranchData {
     pub in_service: bool,
 }
 
-pub(crate) fn check_range(
-    element: &str,
-    parameter: &str,
-    value: f64,
-    ok: bool,
-    expected: &str,
-) -> Result<(), CaseError> {
-    if ok && value.is_finite() {
-        Ok(())
-    } else {
-        Err(CaseError::OutOfRange {
-            element: element.to_string(),
-            parameter: parameter.to_string(),
-            value,
-            expected: expected.to_string(),
-        })
-    }
-}
-
 /// Series impedance admissible: r ≥ 0, x > 0, both finite.
 fn impedance_ok(r: f64, x: f64) -> bool {
     r.is_finite() && x.is_finite() && r >= 0.0 && x > 0.0
-}
-
-pub(crate) fn pos(element: &str, parameter: &str, v: f64) -> Result<(), CaseError> {
-    check_range(element, parameter, v, v > 0.0, "> 0")
-}
-pub(crate) fn nonneg(element: &str, parameter: &str, v: f64) -> Result<(), CaseError> {
-    check_range(element, parameter, v, v >= 0.0, ">= 0")
 }
 
 impl Case {

@@ -1,9 +1,9 @@
 //! Scheduled events (load steps, generator and line trips): their state, overrides and firing.
 
 use crate::case::{Event, LoadModel};
-use crate::grid::{Grid, GridError};
-use crate::integration::EVENT_EPS;
-use crate::powerflow::C64;
+use crate::error::GridError;
+use crate::grid::Grid;
+use crate::numerics::{C64, EVENT_EPS};
 use serde::{Deserialize, Serialize};
 
 /// Changes to a scheduled event (None keeps the case value).

@@ -6,164 +6,25 @@
 //! models), [`crate::integration`] (internal step and RK4), [`crate::events`] and
 //! [`crate::snapshot`] (serialization).
 
+pub use crate::error::GridError;
 pub use crate::events::{EventOverride, EventState};
 pub use crate::integration::MAX_INTERNAL_STEP;
 pub use crate::network::CONST_POWER_V_MIN;
 
-use crate::case::{BranchData, Case, CaseError, DerKind, LoadModel};
-use crate::integration::{choose_internal_step, TimeConstant};
+use crate::case::{BranchData, Case, DerKind, LoadModel};
+use crate::integration::choose_internal_step;
 use crate::machine::{rot, state, MachineRt};
 use crate::network::{Network, Work};
+use crate::numerics::TimeConstant;
 use crate::powerflow::{self, PowerFlow, C64};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
-use std::fmt;
-
-/// Errors while building or running the grid.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub enum GridError {
-    Case(CaseError),
-    PowerFlowDiverged {
-        iterations: usize,
-        mismatch: f64,
-    },
-    Init(String),
-    SingularNetwork,
-    /// The network solution did not converge (in practice: the voltages collapsed). `bus` is
-    /// the bus with the lowest voltage magnitude `v_min` (pu) over the last two iterates,
-    /// `mismatch_bus` the bus whose voltage changed most in the last iteration (`residual`, pu);
-    /// both are bus ids of the case.
-    NetworkNotConverged {
-        t: f64,
-        residual: f64,
-        bus: u32,
-        v_min: f64,
-        mismatch_bus: u32,
-    },
-    /// A machine or grid-forming DER slot (`unit`: `machine SG1`, `DER slot 2`) drifted more
-    /// than [`LOSS_OF_SYNCHRONISM_ANGLE`] from the centre-of-inertia angle: `angle` is its
-    /// rotor (slot: internal voltage) angle minus the COI angle, rad.
-    LossOfSynchronism {
-        t: f64,
-        unit: String,
-        angle: f64,
-    },
-    BadSlot {
-        index: usize,
-        reason: String,
-    },
-    BadEvent {
-        index: usize,
-        reason: String,
-    },
-    InvalidStep {
-        t: f64,
-        h: f64,
-    },
-    TimeMismatch {
-        expected: f64,
-        got: f64,
-    },
-    NonFinite {
-        t: f64,
-    },
-    /// A time constant of the case is too short for the smallest internal step
-    /// ([`crate::MIN_INTERNAL_STEP`]): `parameter` names it and its value, `min` is the shortest
-    /// admissible time constant, s.
-    TimeConstantTooSmall {
-        parameter: String,
-        min: f64,
-    },
-}
-
-impl fmt::Display for GridError {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            GridError::Case(e) => write!(f, "{e}"),
-            GridError::PowerFlowDiverged {
-                iterations,
-                mismatch,
-            } => write!(
-                f,
-                "power flow did not converge ({iterations} iterations, mismatch {mismatch:e} pu)"
-            ),
-            GridError::Init(m) => write!(f, "initialization failed: {m}"),
-            GridError::SingularNetwork => write!(f, "network admittance matrix is singular"),
-            GridError::NetworkNotConverged {
-                t,
-                residual,
-                bus,
-                v_min,
-                mismatch_bus,
-            } => {
-                let t = round_time(*t);
-                let cause = if *v_min < CONST_POWER_V_MIN {
-                    "voltage collapse: "
-                } else {
-                    ""
-                };
-                write!(
-                    f,
-                    "t = {t} s: {cause}the network solution did not converge (residual \
-                     {residual:.3e} pu at bus {mismatch_bus}); lowest voltage {v_min:.3} pu at \
-                     bus {bus}"
-                )
-            }
-            GridError::LossOfSynchronism { t, unit, angle } => {
-                let t = round_time(*t);
-                let what = if unit.starts_with("machine") {
-                    "rotor angle"
-                } else {
-                    "internal voltage angle"
-                };
-                let side = if *angle >= 0.0 { "ahead of" } else { "behind" };
-                write!(
-                    f,
-                    "t = {t} s: {unit} lost synchronism: its {what} is {:.2} rad {side} the \
-                     centre of inertia (limit π)",
-                    angle.abs()
-                )
-            }
-            GridError::BadSlot { index, reason } => write!(f, "DER slot {index}: {reason}"),
-            GridError::BadEvent { index, reason } => write!(f, "event {index}: {reason}"),
-            GridError::InvalidStep { t, h } => write!(f, "invalid step t = {t}, h = {h}"),
-            GridError::TimeMismatch { expected, got } => {
-                write!(
-                    f,
-                    "step starts at t = {got} but the grid is at t = {expected}"
-                )
-            }
-            GridError::NonFinite { t } => write!(f, "non-finite state at t = {t} s"),
-            GridError::TimeConstantTooSmall { parameter, min } => write!(
-                f,
-                "{parameter} is below {min} s, the shortest time constant the fixed-step RK4 \
-                 integration resolves (internal step at least {} s and at most 1/{} of the \
-                 smallest time constant)",
-                crate::integration::MIN_INTERNAL_STEP,
-                crate::integration::STEPS_PER_TIME_CONSTANT
-            ),
-        }
-    }
-}
-
-impl std::error::Error for GridError {}
-
-/// A time for messages: rounded to the microsecond, so that sums of steps print as `3.412`.
-fn round_time(t: f64) -> f64 {
-    (t * 1e6).round() / 1e6
-}
 
 /// Angle between a machine's rotor (or a grid-forming slot's internal voltage) and the centre
 /// of inertia beyond which the unit has lost synchronism, rad: π, the pole slip (the
 /// electrical power it exchanges with the rest of the grid has changed sign, and a first-swing
 /// stable system stays well inside it).
 pub const LOSS_OF_SYNCHRONISM_ANGLE: f64 = PI;
-
-impl From<CaseError> for GridError {
-    fn from(e: CaseError) -> Self {
-        GridError::Case(e)
-    }
-}
 
 /// Initial DER set points (what the DER controllers must hold for a flat start).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]

@@ -9,55 +9,12 @@
 //! τ_min being the smallest time constant of the case (see [`Grid::internal_step_note`]); a case
 //! that would need a step below [`MIN_INTERNAL_STEP`] is refused when the grid is built.
 
-use crate::grid::{Grid, GridError};
-use crate::network::{wrap, Work};
-use crate::powerflow::C64;
+pub use crate::numerics::{MAX_INTERNAL_STEP, MIN_INTERNAL_STEP, STEPS_PER_TIME_CONSTANT};
 
-/// Largest internal integration step, s.
-pub const MAX_INTERNAL_STEP: f64 = 1e-3;
-/// Smallest internal step the grid will choose, s: a case whose time constants need less is
-/// refused (a phasor model does not represent dynamics that fast anyway).
-pub const MIN_INTERNAL_STEP: f64 = 5e-5;
-/// Internal steps per smallest time constant: h ≤ τ_min / 3 keeps RK4 well inside its stability
-/// limit (h < 2.785 τ) and accurate on the fastest mode.
-pub const STEPS_PER_TIME_CONSTANT: f64 = 3.0;
-
-/// A time constant of the case that the internal step has to resolve.
-#[derive(Clone, Debug, PartialEq)]
-pub(crate) struct TimeConstant {
-    /// Parameter it comes from, e.g. `machine[2].governor.t_ch`.
-    pub name: String,
-    /// The parameter's value.
-    pub value: f64,
-    /// The time constant it gives, s, and how (when it is not the parameter itself).
-    pub tau: f64,
-    pub how: Option<&'static str>,
-}
-
-impl TimeConstant {
-    pub fn new(name: String, value: f64) -> TimeConstant {
-        TimeConstant {
-            name,
-            value,
-            tau: value,
-            how: None,
-        }
-    }
-
-    /// The parameter gives the time constant `tau` through the relation `how`.
-    pub fn effective(mut self, tau: f64, how: &'static str) -> TimeConstant {
-        self.tau = tau;
-        self.how = Some(how);
-        self
-    }
-
-    fn describe(&self) -> String {
-        match self.how {
-            None => format!("{} = {} s", self.name, self.value),
-            Some(how) => format!("{} = {} ({how} = {:e} s)", self.name, self.value, self.tau),
-        }
-    }
-}
+use crate::error::GridError;
+use crate::grid::Grid;
+use crate::network::Work;
+use crate::numerics::{wrap, TimeConstant, C64, EVENT_EPS};
 
 /// The internal step for time constants `tcs`: [`MAX_INTERNAL_STEP`] or less, and why it is
 /// less (a note naming the limiting parameter); an error names a time constant too small.
@@ -88,18 +45,6 @@ pub(crate) fn choose_internal_step(
     );
     Ok((h, Some(note)))
 }
-
-/// Non-windup limit on an integrator state: hold at the limit while pushed outward.
-pub(crate) fn limited(dx: f64, x: f64, lo: f64, hi: f64) -> f64 {
-    if (x >= hi && dx > 0.0) || (x <= lo && dx < 0.0) {
-        0.0
-    } else {
-        dx
-    }
-}
-
-/// Tolerance on event times, s.
-pub(crate) const EVENT_EPS: f64 = 1e-9;
 
 impl Grid {
     /// Time derivative `dx` of the state vector at `x`, given its network solution (bus

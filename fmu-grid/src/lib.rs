@@ -24,6 +24,7 @@
 
 pub mod analysis;
 pub mod case;
+pub mod error;
 pub mod events;
 pub mod exciter;
 pub mod governor;
@@ -31,6 +32,7 @@ pub mod grid;
 pub mod integration;
 pub mod machine;
 pub mod network;
+pub mod numerics;
 pub mod ports;
 pub mod powerflow;
 pub mod snapshot;

@@ -10,14 +10,15 @@
 //! fixed-point iteration on the factorized network (tolerance 1e-12 pu on every bus voltage).
 
 use crate::case::{BranchData, DerKind};
-use crate::grid::{DerInput, Grid, GridError, SlotLimit};
+use crate::error::GridError;
+use crate::grid::{DerInput, Grid, SlotLimit};
 use crate::machine::{rot, state, MachAlg};
-use crate::powerflow::{self, C64};
+use crate::numerics::{wrap, C64};
+use crate::powerflow;
 use nalgebra::DVector;
-use std::f64::consts::PI;
 
-/// Voltage below which constant-power loads turn into constant impedances, pu.
-pub const CONST_POWER_V_MIN: f64 = 0.7;
+pub use crate::numerics::CONST_POWER_V_MIN;
+
 const NET_TOL: f64 = 1e-12;
 const NET_MAX_ITER: usize = 500;
 /// A solution whose last update is below this (pu) after `NET_MAX_ITER` iterations is taken:
@@ -119,17 +120,6 @@ fn lowest_voltage<'a>(v: impl Iterator<Item = &'a C64>) -> (usize, f64) {
         .filter(|(_, m)| m.is_finite())
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .unwrap_or((0, f64::NAN))
-}
-
-/// Angle wrapped to (-π, π].
-pub(crate) fn wrap(a: f64) -> f64 {
-    let mut a = a % (2.0 * PI);
-    if a > PI {
-        a -= 2.0 * PI;
-    } else if a <= -PI {
-        a += 2.0 * PI;
-    }
-    a
 }
 
 impl Grid {

@@ -24,18 +24,18 @@
 
 pub mod analysis;
 pub mod case;
+pub mod der;
 pub mod error;
-pub mod events;
 pub mod exciter;
 pub mod governor;
 pub mod grid;
+pub use grid::{events, snapshot};
 pub mod integration;
 pub mod machine;
 pub mod network;
 pub mod numerics;
 pub mod ports;
 pub mod powerflow;
-pub mod snapshot;
 
 pub use case::{Case, CaseError, DerKind, DerSlot, Event, LoadModel};
 pub use events::{EventOverride, EventState};

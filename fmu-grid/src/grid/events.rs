@@ -1,8 +1,8 @@
 //! Scheduled events (load steps, generator and line trips): their state, overrides and firing.
 
+use super::Grid;
 use crate::case::{Event, LoadModel};
 use crate::error::GridError;
-use crate::grid::Grid;
 use crate::numerics::{C64, EVENT_EPS};
 use serde::{Deserialize, Serialize};
 
@@ -123,7 +123,7 @@ impl Grid {
                     let s = C64::new(dp_mw, dq_mvar) / self.sb;
                     match model {
                         LoadModel::ConstantImpedance => {
-                            self.load_y[b] += s.conj() / self.v[b].norm_sqr().max(1e-6)
+                            self.load_y[b] += s.conj() / self.sol.v[b].norm_sqr().max(1e-6)
                         }
                         LoadModel::ConstantPower => self.load_s[b] += s,
                     }

@@ -6,15 +6,22 @@
 //! models), [`crate::integration`] (internal step and RK4), [`crate::events`] and
 //! [`crate::snapshot`] (serialization).
 
+mod dynamics;
+pub mod events;
+pub mod snapshot;
+
+pub use crate::der::{DerInput, DerSetpoint, SlotLimit};
 pub use crate::error::GridError;
-pub use crate::events::{EventOverride, EventState};
 pub use crate::integration::MAX_INTERNAL_STEP;
 pub use crate::network::CONST_POWER_V_MIN;
+pub use events::{EventOverride, EventState};
 
 use crate::case::{BranchData, Case, DerKind, LoadModel};
+use crate::der::DerRt;
 use crate::integration::choose_internal_step;
+use crate::integration::Rk4;
 use crate::machine::{rot, state, MachineRt};
-use crate::network::{Network, Work};
+use crate::network::{Network, Scratch, Solution};
 use crate::numerics::TimeConstant;
 use crate::powerflow::{self, PowerFlow, C64};
 use serde::{Deserialize, Serialize};
@@ -25,51 +32,6 @@ use std::f64::consts::PI;
 /// electrical power it exchanges with the rest of the grid has changed sign, and a first-swing
 /// stable system stays well inside it).
 pub const LOSS_OF_SYNCHRONISM_ANGLE: f64 = PI;
-
-/// Initial DER set points (what the DER controllers must hold for a flat start).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub enum DerSetpoint {
-    /// Internal voltage angle (rad, frame at f_nom) and magnitude (pu).
-    GridForming { theta0: f64, e0: f64 },
-    /// Injected powers at the bus, pu on S_base.
-    GridFollowing { p0: f64, q0: f64 },
-}
-
-/// Input of a DER slot.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub enum DerInput {
-    GridForming { theta: f64, e: f64 },
-    GridFollowing { p_ref: f64, q_ref: f64 },
-}
-
-/// The limits of a slot's converter output stage, enforced inside every network solution (a
-/// converter's inner current loop acts within a fraction of a communication step, so its
-/// saturation is algebraic): the active power it injects within `[p_min, p_max]` (pu on S_base;
-/// the dc link's budget, grid-forming slots), then the current magnitude at most `i_max` (pu of
-/// the slot rating at 1 pu voltage), keeping the current's direction.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
-pub struct SlotLimit {
-    pub i_max: f64,
-    pub p_min: f64,
-    pub p_max: f64,
-}
-
-impl SlotLimit {
-    /// No limit.
-    pub const NONE: SlotLimit = SlotLimit {
-        i_max: f64::INFINITY,
-        p_min: f64::NEG_INFINITY,
-        p_max: f64::INFINITY,
-    };
-
-    fn is_none(&self) -> bool {
-        *self == SlotLimit::NONE
-    }
-}
-
-/// Below this bus voltage (pu) the active-power limits of a slot are not applied (a dead bus
-/// has no direction; the current limit still holds).
-const LIMIT_V_MIN: f64 = 1e-3;
 
 /// Per-slot outputs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
@@ -100,7 +62,7 @@ pub struct PccOutput {
 
 /// A point of coupling as the simulation uses it.
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub(crate) struct PocRt {
+struct PocRt {
     /// Measurement bus (index).
     pub bus: usize,
     /// Branch indices whose flows from the area towards `bus` are summed.
@@ -203,54 +165,6 @@ pub struct Outputs {
     pub balance_p: f64,
 }
 
-/// A DER slot as the simulation uses it.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-pub(crate) struct DerRt {
-    pub kind: DerKind,
-    pub bus: usize,
-    /// Series admittance on the system base (grid-forming).
-    pub y: C64,
-    pub input: DerInput,
-    pub initial: DerSetpoint,
-    /// Slot rating over S_base (converts `i_max` to the system base).
-    pub rating: f64,
-    pub limit: SlotLimit,
-}
-
-impl DerRt {
-    /// The current the slot injects into its bus at voltage `v`: `y (E - V)` (grid-forming) or
-    /// `conj(S/V)` (grid-following), within the slot's limits.
-    pub(crate) fn current(&self, v: C64) -> C64 {
-        let free = match self.input {
-            DerInput::GridForming { theta, e } => self.y * (C64::from_polar(e, theta) - v),
-            DerInput::GridFollowing { p_ref, q_ref } => {
-                if v.norm() > 0.0 {
-                    (C64::new(p_ref, q_ref) / v).conj()
-                } else {
-                    C64::new(0.0, 0.0)
-                }
-            }
-        };
-        if self.limit.is_none() {
-            return free;
-        }
-        let mut i = free;
-        let vm = v.norm();
-        if vm > LIMIT_V_MIN {
-            // Active part along the voltage: p = |V| i_p.
-            let u = v / vm;
-            let local = i * u.conj();
-            let ip = local.re.clamp(self.limit.p_min / vm, self.limit.p_max / vm);
-            i = C64::new(ip, local.im) * u;
-        }
-        let i_max = self.limit.i_max * self.rating;
-        if i.norm() > i_max {
-            i *= i_max / i.norm();
-        }
-        i
-    }
-}
-
 /// The reduced-grid model.
 ///
 /// `Serialize`/`Deserialize` go through [`GridSnapshot`]: the case as TOML text plus the
@@ -258,46 +172,49 @@ impl DerRt {
 /// rebuilds the static part from the case and restores the state bit for bit.
 #[derive(Clone, Debug)]
 pub struct Grid {
-    pub(crate) case: Case,
-    pub(crate) sb: f64,
-    pub(crate) wb: f64,
-    pub(crate) n: usize,
-    pub(crate) branches: Vec<BranchData>,
-    pub(crate) load_y: Vec<C64>,
-    pub(crate) load_s: Vec<C64>,
-    pub(crate) machines: Vec<MachineRt>,
-    pub(crate) ders: Vec<DerRt>,
-    pub(crate) pcc_bus: usize,
-    pub(crate) pcc_slots: Vec<usize>,
+    case: Case,
+    sb: f64,
+    wb: f64,
+    n: usize,
+    branches: Vec<BranchData>,
+    load_y: Vec<C64>,
+    load_s: Vec<C64>,
+    machines: Vec<MachineRt>,
+    ders: Vec<DerRt>,
+    pcc_bus: usize,
+    pcc_slots: Vec<usize>,
     /// (branch index, measured at bus index).
-    pub(crate) pcc_branches: Vec<(usize, usize)>,
-    pub(crate) pcc_tf: f64,
-    pub(crate) pocs: Vec<PocRt>,
+    pcc_branches: Vec<(usize, usize)>,
+    pcc_tf: f64,
+    pocs: Vec<PocRt>,
     /// Buses of the area behind the POCs (reached from the POC branches' far ends without
     /// crossing them); empty without POCs.
-    pub(crate) area: Vec<usize>,
+    area: Vec<usize>,
     /// Index in `x` of the PCC angle filter state; the POC filters follow it.
-    pub(crate) pcc_state: usize,
+    pcc_state: usize,
     /// State vector: per machine its states (see `MachineRt::at`), then the PCC angle filter,
     /// then one angle filter per POC.
-    pub(crate) x: Vec<f64>,
-    pub(crate) t: f64,
-    pub(crate) v: Vec<C64>,
-    pub(crate) der_angle: Vec<f64>,
-    pub(crate) pcc_angle: f64,
+    x: Vec<f64>,
+    t: f64,
+    /// The network solution at the current state.
+    sol: Solution,
+    der_angle: Vec<f64>,
+    pcc_angle: f64,
     /// Unwrapped bus angle of each POC, rad.
-    pub(crate) poc_angle: Vec<f64>,
-    pub(crate) events: Vec<EventState>,
-    pub(crate) pf: PowerFlow,
+    poc_angle: Vec<f64>,
+    events: Vec<EventState>,
+    pf: PowerFlow,
     /// Internal integration step in use, and the largest the case's time constants allow.
-    pub(crate) h_max: f64,
-    pub(crate) h_limit: f64,
+    h_max: f64,
+    h_limit: f64,
     /// Why `h_limit` is below [`MAX_INTERNAL_STEP`] (None when it is not).
-    pub(crate) step_note: Option<String>,
+    step_note: Option<String>,
     /// Factorized network; a cache, rebuilt on demand (not part of snapshots).
-    pub(crate) net: Option<Network>,
-    /// Work buffers of the network solves and the integrator; a cache (not part of snapshots).
-    pub(crate) work: Work,
+    net: Option<Network>,
+    /// Work buffers of the network solves and the integrator; caches (not part of snapshots).
+    spare: Solution,
+    scratch: Scratch,
+    rk4: Rk4<Solution>,
 }
 
 impl Grid {
@@ -480,7 +397,7 @@ impl Grid {
             pcc_state,
             x,
             t: 0.0,
-            v,
+            sol: Solution { v, alg: Vec::new() },
             der_angle,
             pcc_angle,
             poc_angle,
@@ -490,15 +407,19 @@ impl Grid {
             h_limit,
             step_note,
             net: None,
-            work: Work::default(),
+            spare: Solution::default(),
+            scratch: Scratch::default(),
+            rk4: Rk4::default(),
         };
         // A network solve from the initialized states must reproduce the power flow.
         g.resolve()?;
-        let dev =
-            g.v.iter()
-                .zip(&g.pf.v)
-                .map(|(a, b)| (a - b).norm())
-                .fold(0.0, f64::max);
+        let dev = g
+            .sol
+            .v
+            .iter()
+            .zip(&g.pf.v)
+            .map(|(a, b)| (a - b).norm())
+            .fold(0.0, f64::max);
         if dev > 1e-8 {
             return Err(GridError::Init(format!(
                 "network solve from the initial states deviates from the power flow by {dev:e} pu"
@@ -663,7 +584,7 @@ impl Grid {
     // ---------------------------------------------------------------- outputs
 
     fn der_power(&self, d: &DerRt) -> C64 {
-        let vb = self.v[d.bus];
+        let vb = self.sol.v[d.bus];
         match (d.input, d.limit.is_none()) {
             (DerInput::GridFollowing { p_ref, q_ref }, true) => C64::new(p_ref, q_ref),
             _ => vb * d.current(vb).conj(),
@@ -692,14 +613,14 @@ impl Grid {
             out.der.push(DerOutput {
                 p: s.re,
                 q: s.im,
-                v: self.v[d.bus].norm(),
+                v: self.sol.v[d.bus].norm(),
                 v_angle: self.der_angle[k],
             });
         }
         let (mut hw, mut hs) = (0.0, 0.0);
         for m in &self.machines {
             let xm = m.own(&self.x);
-            let vt = self.v[m.bus];
+            let vt = self.sol.v[m.bus];
             let mut o = MachineOutput {
                 omega: xm[state::OMEGA],
                 delta: xm[state::DELTA],
@@ -725,7 +646,7 @@ impl Grid {
         }
         let mut load = 0.0;
         for i in 0..self.n {
-            let vm2 = self.v[i].norm_sqr();
+            let vm2 = self.sol.v[i].norm_sqr();
             load += self.load_y[i].re * vm2;
             let s = self.load_s[i];
             load += if vm2.sqrt() >= CONST_POWER_V_MIN {
@@ -736,7 +657,7 @@ impl Grid {
         }
         for s in &self.case.shunts {
             if let Some(i) = self.case.buses.iter().position(|b| b.id == s.bus) {
-                load += s.g * self.v[i].norm_sqr();
+                load += s.g * self.sol.v[i].norm_sqr();
             }
         }
         let mut loss = 0.0;
@@ -760,7 +681,7 @@ impl Grid {
         out.pcc = PccOutput {
             p: sp.re,
             q: sp.im,
-            v: self.v[self.pcc_bus].norm(),
+            v: self.sol.v[self.pcc_bus].norm(),
             f,
             angle: self.pcc_angle,
         };
@@ -788,7 +709,7 @@ impl Grid {
             let measured = PccOutput {
                 p: s.re,
                 q: s.im,
-                v: self.v[p.bus].norm(),
+                v: self.sol.v[p.bus].norm(),
                 f: 1.0 + (th - self.x[self.pcc_state + 1 + k]) / (p.tf * self.wb),
                 angle: th,
             };
@@ -799,7 +720,7 @@ impl Grid {
             }
         }
         for &i in &self.area {
-            let vm2 = self.v[i].norm_sqr();
+            let vm2 = self.sol.v[i].norm_sqr();
             let s = self.load_s[i];
             let sc = if vm2.sqrt() >= CONST_POWER_V_MIN {
                 s
@@ -867,7 +788,7 @@ impl Grid {
 
     /// Current bus voltages (complex, frame at f_nom).
     pub fn bus_voltages(&self) -> Vec<(f64, f64)> {
-        self.v.iter().map(|v| (v.norm(), v.arg())).collect()
+        self.sol.v.iter().map(|v| (v.norm(), v.arg())).collect()
     }
 }
 

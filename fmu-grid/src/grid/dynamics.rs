@@ -4,7 +4,6 @@
 //! Events split the sub-steps so they fire exactly at their time.
 
 use super::Grid;
-use crate::case::BranchData;
 use crate::error::GridError;
 use crate::integration::Dae;
 use crate::machine::MachAlg;
@@ -94,17 +93,6 @@ impl Grid {
             let a = self.sol.v[p.bus].arg();
             self.poc_angle[k] += wrap(a - self.poc_angle[k]);
         }
-    }
-
-    /// Complex powers entering a branch at its `from` and `to` ends (current bus voltages).
-    pub(super) fn branch_flows(&self, br: &BranchData) -> (C64, C64) {
-        let ys = C64::new(1.0, 0.0) / C64::new(br.r, br.x);
-        let hb = C64::new(0.0, br.b / 2.0);
-        let (vf, vt) = (self.sol.v[br.from], self.sol.v[br.to]);
-        let t = br.tap;
-        let i_f = (ys / (t * t) + hb) * vf - ys / t * vt;
-        let i_t = (ys + hb) * vt - ys / t * vf;
-        (vf * i_f.conj(), vt * i_t.conj())
     }
 
     /// Time derivative `dx` of the state vector at `x`, given its network solution (bus

@@ -90,7 +90,7 @@ fn area_buses(n: usize, branches: &[BranchData], pocs: &[PocRt]) -> Vec<usize> {
 
 /// The reduced-grid model.
 ///
-/// `Serialize`/`Deserialize` go through [`GridSnapshot`]: the case as TOML text plus the
+/// `Serialize`/`Deserialize` go through `GridSnapshot` ([`snapshot`]): the case as TOML text plus the
 /// evolving state, so that the bytes are valid in binary formats (postcard) too; deserializing
 /// rebuilds the static part from the case and restores the state bit for bit.
 #[derive(Clone, Debug)]

@@ -1,7 +1,7 @@
 //! Serialization of a [`Grid`] (FMU states): the case as TOML text plus the evolving state.
 
+use super::events::EventState;
 use crate::case::{Case, Event};
-use crate::events::EventState;
 use crate::grid::{DerInput, Grid, SlotLimit};
 use crate::powerflow::C64;
 use serde::{Deserialize, Serialize};

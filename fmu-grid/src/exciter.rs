@@ -4,8 +4,8 @@
 //! initialization, field voltage, derivatives, limits, time constants) is in this file, so a new
 //! model is added here alone. Voltages are in pu, the field voltage on the machine's E_fd base.
 
-use crate::case::{check_range, nonneg, pos, CaseError};
-use crate::integration::{limited, TimeConstant};
+use crate::error::{check_range, nonneg, pos, CaseError};
+use crate::numerics::{limited, TimeConstant};
 use serde::{Deserialize, Serialize};
 
 /// Excitation system (voltage regulator), on the machine's field-voltage pu.

@@ -4,8 +4,8 @@
 //! initialization, mechanical power, derivatives, limits, time constants) is in this file, so a
 //! new model is added here alone. Powers are in pu of the machine rating, speeds in pu.
 
-use crate::case::{check_range, nonneg, pos, CaseError};
-use crate::integration::{limited, TimeConstant};
+use crate::error::{check_range, nonneg, pos, CaseError};
+use crate::numerics::{limited, TimeConstant};
 use serde::{Deserialize, Serialize};
 
 /// Turbine-governor. All powers in pu of the machine rating; `r` is the permanent droop.

@@ -1,63 +1,19 @@
-//! Time integration: the internal step matched to the case's time constants, and fixed-step RK4.
+//! Time integration: the internal step matched to the case's time constants, and fixed-step RK4
+//! over a semi-explicit DAE ([`Dae`]: states, their derivative, an algebraic solve per stage).
 //!
-//! Classical fourth-order Runge–Kutta with a fixed internal step (the communication step is
-//! split into equal sub-steps), with a full algebraic network solve at every stage. Events split
-//! the sub-steps so they fire exactly at their time.
+//! Classical fourth-order Runge–Kutta with a fixed internal step (the grid splits the
+//! communication step into equal sub-steps), with a full algebraic solve (the grid: its network)
+//! at every stage. This module knows nothing of the grid: it integrates any [`Dae`].
 //!
 //! RK4 is stable for a decaying mode of time constant τ only while h < 2.785 τ. The internal step
 //! is therefore at most [`MAX_INTERNAL_STEP`] and at most τ_min / [`STEPS_PER_TIME_CONSTANT`],
-//! τ_min being the smallest time constant of the case (see [`Grid::internal_step_note`]); a case
+//! τ_min being the smallest time constant of the case (see [`crate::Grid::internal_step_note`]); a case
 //! that would need a step below [`MIN_INTERNAL_STEP`] is refused when the grid is built.
 
-use crate::grid::{Grid, GridError};
-use crate::network::{wrap, Work};
-use crate::powerflow::C64;
+pub use crate::numerics::{MAX_INTERNAL_STEP, MIN_INTERNAL_STEP, STEPS_PER_TIME_CONSTANT};
 
-/// Largest internal integration step, s.
-pub const MAX_INTERNAL_STEP: f64 = 1e-3;
-/// Smallest internal step the grid will choose, s: a case whose time constants need less is
-/// refused (a phasor model does not represent dynamics that fast anyway).
-pub const MIN_INTERNAL_STEP: f64 = 5e-5;
-/// Internal steps per smallest time constant: h ≤ τ_min / 3 keeps RK4 well inside its stability
-/// limit (h < 2.785 τ) and accurate on the fastest mode.
-pub const STEPS_PER_TIME_CONSTANT: f64 = 3.0;
-
-/// A time constant of the case that the internal step has to resolve.
-#[derive(Clone, Debug, PartialEq)]
-pub(crate) struct TimeConstant {
-    /// Parameter it comes from, e.g. `machine[2].governor.t_ch`.
-    pub name: String,
-    /// The parameter's value.
-    pub value: f64,
-    /// The time constant it gives, s, and how (when it is not the parameter itself).
-    pub tau: f64,
-    pub how: Option<&'static str>,
-}
-
-impl TimeConstant {
-    pub fn new(name: String, value: f64) -> TimeConstant {
-        TimeConstant {
-            name,
-            value,
-            tau: value,
-            how: None,
-        }
-    }
-
-    /// The parameter gives the time constant `tau` through the relation `how`.
-    pub fn effective(mut self, tau: f64, how: &'static str) -> TimeConstant {
-        self.tau = tau;
-        self.how = Some(how);
-        self
-    }
-
-    fn describe(&self) -> String {
-        match self.how {
-            None => format!("{} = {} s", self.name, self.value),
-            Some(how) => format!("{} = {} ({how} = {:e} s)", self.name, self.value, self.tau),
-        }
-    }
-}
+use crate::error::GridError;
+use crate::numerics::TimeConstant;
 
 /// The internal step for time constants `tcs`: [`MAX_INTERNAL_STEP`] or less, and why it is
 /// less (a note naming the limiting parameter); an error names a time constant too small.
@@ -89,152 +45,147 @@ pub(crate) fn choose_internal_step(
     Ok((h, Some(note)))
 }
 
-/// Non-windup limit on an integrator state: hold at the limit while pushed outward.
-pub(crate) fn limited(dx: f64, x: f64, lo: f64, hi: f64) -> f64 {
-    if (x >= hi && dx > 0.0) || (x <= lo && dx < 0.0) {
-        0.0
-    } else {
-        dx
+/// A semi-explicit DAE `x' = f(x, y)`, `0 = g(x, y)`: what [`Rk4`] integrates.
+pub trait Dae {
+    /// The algebraic variables `y`; also the starting guess of the next solve.
+    type Solution: Clone;
+    /// Work buffers of the algebraic solve.
+    type Scratch;
+    type Error;
+    /// Solve the algebraic equations at states `x`: `sol` holds the starting guess and receives
+    /// the solution.
+    fn solve(
+        &self,
+        x: &[f64],
+        sol: &mut Self::Solution,
+        scratch: &mut Self::Scratch,
+    ) -> Result<(), Self::Error>;
+    /// Time derivative `dx` of the states at `x` with their algebraic solution `sol`.
+    fn derivative(&self, x: &[f64], sol: &Self::Solution, dx: &mut Vec<f64>);
+    /// Bring the states within their limits after a step (default: none).
+    fn clamp(&self, _x: &mut [f64]) {}
+    /// The error for a step that made a state non-finite.
+    fn non_finite(&self) -> Self::Error;
+}
+
+/// Classical fixed-step RK4 with its stage buffers (reused, so that a step allocates nothing).
+#[derive(Clone, Debug, Default)]
+pub struct Rk4<S> {
+    x0: Vec<f64>,
+    xs: Vec<f64>,
+    k: [Vec<f64>; 4],
+    stage: S,
+}
+
+impl<S: Clone> Rk4<S> {
+    /// One step of length `h` of `sys` from states `x` whose algebraic solution is `sol`.
+    ///
+    /// Every stage solves the algebraic equations (starting from the previous stage's
+    /// solution); the new states are clamped, then solved (starting from `sol`). On success `x`
+    /// and `sol` hold the new point; a failed stage leaves both as they were, a non-finite
+    /// state restores `x`, a failed final solve leaves `sol` as it was.
+    pub fn step<D: Dae<Solution = S>>(
+        &mut self,
+        sys: &D,
+        x: &mut [f64],
+        sol: &mut S,
+        scratch: &mut D::Scratch,
+        h: f64,
+    ) -> Result<(), D::Error> {
+        let Rk4 { x0, xs, k, stage } = self;
+        x0.clear();
+        x0.extend_from_slice(x);
+        sys.derivative(x0, sol, &mut k[0]);
+        stage.clone_from(sol);
+        for (s, c) in [(1, 0.5), (2, 0.5), (3, 1.0)] {
+            xs.clear();
+            xs.extend(x0.iter().zip(&k[s - 1]).map(|(x, d)| x + c * h * d));
+            sys.solve(xs, stage, scratch)?;
+            sys.derivative(xs, stage, &mut k[s]);
+        }
+        for i in 0..x0.len() {
+            x[i] = x0[i] + h / 6.0 * (k[0][i] + 2.0 * k[1][i] + 2.0 * k[2][i] + k[3][i]);
+        }
+        if x.iter().any(|v| !v.is_finite()) {
+            x.copy_from_slice(x0);
+            return Err(sys.non_finite());
+        }
+        sys.clamp(x);
+        // The solution at the new state: the next step's first stage.
+        stage.clone_from(sol);
+        sys.solve(x, stage, scratch)?;
+        std::mem::swap(sol, stage);
+        Ok(())
     }
 }
 
-/// Tolerance on event times, s.
-pub(crate) const EVENT_EPS: f64 = 1e-9;
+#[cfg(test)]
+mod tests {
+    use super::*;
 
-impl Grid {
-    /// Time derivative `dx` of the state vector at `x`, given its network solution (bus
-    /// voltages `v`, stator solutions `w_alg`).
-    pub(crate) fn deriv(
-        &self,
-        x: &[f64],
-        v: &[C64],
-        alg: &[crate::machine::MachAlg],
-        dx: &mut Vec<f64>,
-    ) {
-        dx.clear();
-        dx.resize(x.len(), 0.0);
-        for (m, a) in self.machines.iter().zip(alg) {
-            m.deriv(x, a, v[m.bus].norm(), self.wb, self.sb, dx);
-        }
-        // The PCC frequency filter works on the unwrapped angle: its lag behind the angle is
-        // Δω T_f, beyond π at deviations above π/(ω_b T_f) (0.1 pu for T_f = 0.1 s).
-        let i = self.pcc_state;
-        let th = self.pcc_angle + wrap(v[self.pcc_bus].arg() - self.pcc_angle);
-        dx[i] = (th - x[i]) / self.pcc_tf;
-        for (k, p) in self.pocs.iter().enumerate() {
-            let th = self.poc_angle[k] + wrap(v[p.bus].arg() - self.poc_angle[k]);
-            dx[i + 1 + k] = (th - x[i + 1 + k]) / p.tf;
-        }
+    /// `x' = A x` with an algebraic `y = x_0 + x_1` (the derivative reads it), and a clamp.
+    struct Oscillator {
+        clamp_at: f64,
     }
 
-    fn clamp_states(&mut self) {
-        for m in &self.machines {
-            m.clamp(&mut self.x);
-        }
-    }
-
-    /// One RK4 step of length `h` from the current state, whose network solution is the one
-    /// in `self.v` and the work buffers (left there by the last solve: `resolve` at the start of
-    /// a communication step, an event, or the previous sub-step's final solve).
-    fn rk4(&mut self, h: f64) -> Result<(), GridError> {
-        let mut w = std::mem::take(&mut self.work);
-        let result = self.rk4_with(h, &mut w);
-        self.work = w;
-        result
-    }
-
-    fn rk4_with(&mut self, h: f64, w: &mut Work) -> Result<(), GridError> {
-        let mut x0 = std::mem::take(&mut w.x0);
-        let mut v0 = std::mem::take(&mut w.v0);
-        let mut xs = std::mem::take(&mut w.xs);
-        let mut vs = std::mem::take(&mut w.vs);
-        let mut k = std::mem::take(&mut w.k);
-        x0.clone_from(&self.x);
-        v0.clone_from(&self.v);
-        if w.alg.len() != self.machines.len() {
-            self.solve_net(&x0, &mut v0, w)?;
-        }
-        self.deriv(&x0, &v0, &w.alg, &mut k[0]);
-        vs.clone_from(&v0);
-        let mut stages = || -> Result<(), GridError> {
-            for (stage, c) in [(1, 0.5), (2, 0.5), (3, 1.0)] {
-                xs.clear();
-                xs.extend(x0.iter().zip(&k[stage - 1]).map(|(x, d)| x + c * h * d));
-                self.solve_net(&xs, &mut vs, w)?;
-                self.deriv(&xs, &vs, &w.alg, &mut k[stage]);
-            }
+    impl Dae for Oscillator {
+        type Solution = f64;
+        type Scratch = usize;
+        type Error = &'static str;
+        fn solve(&self, x: &[f64], sol: &mut f64, solves: &mut usize) -> Result<(), &'static str> {
+            *solves += 1;
+            *sol = x[0] + x[1];
             Ok(())
+        }
+        fn derivative(&self, x: &[f64], y: &f64, dx: &mut Vec<f64>) {
+            dx.clear();
+            // x0' = x1, x1' = -x0 written through y: x1' = x1 - y
+            dx.extend([x[1], x[1] - y]);
+        }
+        fn clamp(&self, x: &mut [f64]) {
+            x[0] = x[0].min(self.clamp_at);
+        }
+        fn non_finite(&self) -> &'static str {
+            "non-finite"
+        }
+    }
+
+    #[test]
+    fn rk4_integrates_a_linear_oscillator_to_fourth_order() {
+        let sys = Oscillator {
+            clamp_at: f64::INFINITY,
         };
-        let staged = stages();
-        let result = staged.and_then(|()| {
-            for i in 0..x0.len() {
-                self.x[i] = x0[i] + h / 6.0 * (k[0][i] + 2.0 * k[1][i] + 2.0 * k[2][i] + k[3][i]);
+        let run = |n: usize| {
+            let (mut x, mut y, mut solves) = (vec![1.0, 0.0], 1.0, 0);
+            let mut rk = Rk4::default();
+            let h = 1.0 / n as f64;
+            for _ in 0..n {
+                rk.step(&sys, &mut x, &mut y, &mut solves, h).unwrap();
             }
-            if self.x.iter().any(|v| !v.is_finite()) {
-                self.x.clone_from(&x0);
-                return Err(GridError::NonFinite { t: self.t });
-            }
-            self.clamp_states();
-            // The solution at the new state: the outputs, and the next sub-step's first stage.
-            vs.clone_from(&v0);
-            self.solve_net(&self.x, &mut vs, w)?;
-            std::mem::swap(&mut self.v, &mut vs);
-            self.update_angles();
-            Ok(())
-        });
-        (w.x0, w.v0, w.xs, w.vs, w.k) = (x0, v0, xs, vs, k);
-        result
+            assert_eq!(solves, 4 * n);
+            assert_eq!(y, x[0] + x[1]);
+            ((x[0] - 1f64.cos()).hypot(x[1] + 1f64.sin()), x)
+        };
+        let (e10, _) = run(10);
+        let (e20, x) = run(20);
+        assert!(e20 < 1e-6, "{x:?}");
+        let order = (e10 / e20).log2();
+        assert!((order - 4.0).abs() < 0.2, "order {order}");
     }
 
-    /// Integrate from `t` to `t + h` (FMI doStep semantics). Events fire when their time is
-    /// reached; the internal step is at most [`Grid::internal_step`].
-    ///
-    /// After every internal step the angles are checked against the centre of inertia (see
-    /// [`Grid::check_synchronism`]): a unit that lost synchronism ends the step with
-    /// [`GridError::LossOfSynchronism`] at the time of that internal step.
-    pub fn step(&mut self, t: f64, h: f64) -> Result<(), GridError> {
-        if !(h >= 0.0 && h.is_finite() && t.is_finite()) {
-            return Err(GridError::InvalidStep { t, h });
-        }
-        if (t - self.t).abs() > 1e-6 * t.abs().max(1.0) {
-            return Err(GridError::TimeMismatch {
-                expected: self.t,
-                got: t,
-            });
-        }
-        self.t = t;
-        self.ensure_lu()?;
-        // inputs may have been set deferred
-        self.resolve()?;
-        let t_end = t + h;
-        loop {
-            self.fire_due_events()?;
-            if self.t >= t_end - EVENT_EPS {
-                break;
-            }
-            let seg_end = t_end.min(self.next_event_time());
-            let span = seg_end - self.t;
-            let ns = (span / self.h_max - 1e-9).ceil().max(1.0) as usize;
-            let hs = span / ns as f64;
-            let t0 = self.t;
-            for i in 0..ns {
-                self.rk4(hs)?;
-                self.t = t0 + (i + 1) as f64 * hs;
-                self.check_synchronism()?;
-            }
-            self.t = seg_end;
-        }
-        self.t = t_end;
-        Ok(())
-    }
-
-    /// Largest |derivative| over all states at the current point (0 at an equilibrium).
-    pub fn max_derivative(&self) -> Result<f64, GridError> {
-        let mut w = Work::default();
-        let mut v = self.v.clone();
-        self.solve_net(&self.x, &mut v, &mut w)?;
-        let mut dx = Vec::new();
-        self.deriv(&self.x, &v, &w.alg, &mut dx);
-        Ok(dx.iter().fold(0.0, |a, d| a.max(d.abs())))
+    #[test]
+    fn rk4_clamps_and_refuses_non_finite_states() {
+        let sys = Oscillator { clamp_at: 0.5 };
+        let (mut x, mut y, mut solves) = (vec![0.0, 1.0], 1.0, 0);
+        let mut rk = Rk4::default();
+        rk.step(&sys, &mut x, &mut y, &mut solves, 1.0).unwrap();
+        assert_eq!(x[0], 0.5);
+        let mut x = vec![f64::MAX, f64::MAX];
+        let mut y = 0.0;
+        assert_eq!(
+            rk.step(&sys, &mut x, &mut y, &mut solves, 1e300),
+            Err("non-finite")
+        );
+        assert_eq!(x, vec![f64::MAX, f64::MAX]);
     }
 }

@@ -1,11 +1,17 @@
 //! Reduced grid FMU: a phasor (RMS) power-system model built from a case file, with DER slots.
 //!
-//! The physics lives in the modules: [`case`] (the TOML case format and its validation),
-//! [`powerflow`] (Newton–Raphson power flow), [`grid`] (the model: DER slots, PCC and COI
-//! outputs) with [`network`] (algebraic network solve), the dynamic models [`machine`],
-//! [`governor`] and [`exciter`], [`integration`] (internal step and RK4), [`events`] and
-//! [`snapshot`], and [`analysis`] (load-step figures). This file wraps [`Grid`] as an FMU
-//! ([`GridFmu`]).
+//! The modules form layers, each importing only from those below it:
+//! * leaves: [`numerics`] (complex type, solver constants, shared helpers) and [`error`]
+//!   ([`CaseError`], [`GridError`]);
+//! * models: [`exciter`], [`governor`], [`machine`] (the dynamic models), [`der`] (DER slots);
+//! * [`case`] (the TOML case format, each element validating itself), [`powerflow`]
+//!   (Newton–Raphson power flow);
+//! * solvers: [`network`] (the admittance matrix, its factorization and the network solve, a
+//!   type of its own) and [`integration`] (internal step, RK4 over a DAE trait);
+//! * [`grid`] (the model: its construction, inputs, dynamics, outputs, [`events`] and
+//!   [`snapshot`]), then [`analysis`] (load-step figures), [`config`] and [`ports`].
+//!
+//! This file wraps [`Grid`] as an FMU ([`GridFmu`]).
 //!
 //! `[model]` in `resources/config.toml` selects the case: `case = "<built-in name>"` or
 //! `case_file = "<file in resources/>"` (default: the built-in `ieee9_dvpp`), and may append
@@ -24,18 +30,22 @@
 
 pub mod analysis;
 pub mod case;
-pub mod events;
+pub mod config;
+pub mod der;
+pub mod error;
 pub mod exciter;
 pub mod governor;
 pub mod grid;
+pub use grid::{events, snapshot};
 pub mod integration;
 pub mod machine;
 pub mod network;
+pub mod numerics;
 pub mod ports;
 pub mod powerflow;
-pub mod snapshot;
 
 pub use case::{Case, CaseError, DerKind, DerSlot, Event, LoadModel};
+pub use config::{GridConfig, DEFAULT_CASE};
 pub use events::{EventOverride, EventState};
 pub use grid::{
     DerInput, DerOutput, DerSetpoint, Grid, GridError, MachineOutput, Outputs, PccOutput,
@@ -48,90 +58,6 @@ pub use powerflow::PowerFlow;
 use fmi_export::{Boolean, Context, Model, ModelError, Real, Spec, Store, Variables};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
-
-/// The built-in case used when `[model]` names none.
-pub const DEFAULT_CASE: &str = "ieee9_dvpp";
-
-/// `[model]` of `resources/config.toml`: which case the grid is built from.
-#[derive(Debug, Clone, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct GridConfig {
-    /// A built-in case: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid` or `ieee9_mv`.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub case: Option<String>,
-    /// A case file (TOML) in the FMU's `resources/` directory, relative to it.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub case_file: Option<String>,
-    /// Events appended to the case's own (e.g. a load step on a case that has none).
-    #[serde(default, rename = "event", skip_serializing_if = "Vec::is_empty")]
-    pub events: Vec<Event>,
-    /// Overrides the case's PCC frequency-measurement time constant `[pcc] f_filter_t`, s (and
-    /// the `f_filter_t` of every `[[poc]]` and `[[dvpp_pcc]]`, so that all frequencies are measured alike).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub pcc_f_filter_t: Option<f64>,
-}
-
-impl GridConfig {
-    /// Read and validate the case this configuration selects, with its extra events appended.
-    pub fn load_case(&self, resources: Option<&Path>) -> Result<Case, String> {
-        let mut case = match (&self.case, &self.case_file) {
-            (Some(_), Some(_)) => {
-                return Err("[model] sets both `case` and `case_file`; choose one".into())
-            }
-            (None, Some(file)) => {
-                let rel = Path::new(file);
-                if rel.is_absolute()
-                    || rel
-                        .components()
-                        .any(|c| !matches!(c, std::path::Component::Normal(_)))
-                {
-                    return Err(format!(
-                        "[model] case_file = \"{file}\" must be a relative path inside resources/"
-                    ));
-                }
-                let dir = resources.ok_or_else(|| {
-                    format!("[model] case_file = \"{file}\" needs the FMU's resources directory")
-                })?;
-                let path = dir.join(rel);
-                let text = std::fs::read_to_string(&path).map_err(|e| {
-                    format!("case file {file}: cannot read {}: {e}", path.display())
-                })?;
-                Case::from_toml_str(&text).map_err(|e| format!("case file {file}: {e}"))?
-            }
-            (name, None) => {
-                let name = name.as_deref().unwrap_or(DEFAULT_CASE);
-                let text = case::builtin_text(name).ok_or_else(|| {
-                    format!(
-                        "[model] case = \"{name}\" is not a built-in case (built-in: {})",
-                        Case::builtin_names().join(", ")
-                    )
-                })?;
-                Case::from_toml_str(text).map_err(|e| format!("built-in case {name}: {e}"))?
-            }
-        };
-        if !self.events.is_empty() {
-            case.events.extend(self.events.iter().cloned());
-            case.validate()
-                .map_err(|e| format!("[model] event tables: {e}"))?;
-        }
-        if let Some(t) = self.pcc_f_filter_t {
-            let pcc = case
-                .pcc
-                .as_mut()
-                .ok_or("[model] pcc_f_filter_t: the case has no [pcc] table")?;
-            pcc.f_filter_t = t;
-            for poc in &mut case.pocs {
-                poc.f_filter_t = t;
-            }
-            for pcc in &mut case.dvpp_pccs {
-                pcc.f_filter_t = t;
-            }
-            case.validate()
-                .map_err(|e| format!("[model] pcc_f_filter_t = {t}: {e}"))?;
-        }
-        Ok(case)
-    }
-}
 
 /// Start value of the slot limit inputs, and the magnitude from which a limit input means none.
 pub const NO_LIMIT: f64 = 1e6;

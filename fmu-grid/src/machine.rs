@@ -4,12 +4,12 @@
 //! [`state`]) followed by those of its governor and exciter, which it drives through
 //! [`Governor`] and [`Exciter`]. [`Layout`] records where they sit in the grid's state vector.
 
-use crate::case::{check_range, nonneg, pos, CaseError};
+use crate::error::GridError;
+use crate::error::{check_range, nonneg, pos, CaseError};
 use crate::exciter::Exciter;
 use crate::governor::Governor;
-use crate::grid::GridError;
-use crate::integration::TimeConstant;
-use crate::powerflow::C64;
+use crate::numerics::TimeConstant;
+use crate::numerics::C64;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 

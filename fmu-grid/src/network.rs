@@ -9,15 +9,16 @@
 //! factorization); grid-following injections and constant-power loads are handled by a
 //! fixed-point iteration on the factorized network (tolerance 1e-12 pu on every bus voltage).
 
-use crate::case::{BranchData, DerKind};
-use crate::grid::{DerInput, Grid, GridError, SlotLimit};
-use crate::machine::{rot, state, MachAlg};
-use crate::powerflow::{self, C64};
+use crate::case::{BranchData, Case, DerKind};
+use crate::der::{DerInput, DerRt, SlotLimit};
+use crate::error::GridError;
+use crate::machine::{rot, state, MachAlg, MachineRt};
+use crate::numerics::C64;
+use crate::powerflow;
 use nalgebra::DVector;
-use std::f64::consts::PI;
 
-/// Voltage below which constant-power loads turn into constant impedances, pu.
-pub const CONST_POWER_V_MIN: f64 = 0.7;
+pub use crate::numerics::CONST_POWER_V_MIN;
+
 const NET_TOL: f64 = 1e-12;
 const NET_MAX_ITER: usize = 500;
 /// A solution whose last update is below this (pu) after `NET_MAX_ITER` iterations is taken:
@@ -25,26 +26,35 @@ const NET_MAX_ITER: usize = 500;
 /// 1e-8 pu voltage error is a 1 W power error on 100 MVA; the balance output shows the rest).
 const NET_ACCEPT: f64 = 1e-8;
 
-/// Work buffers reused by every network solve and RK4 stage, so that a step allocates nothing.
+/// A network solution: the bus voltages (also the starting guess of the next solve) and the
+/// stator solution of every machine.
 #[derive(Clone, Debug, Default)]
-pub(crate) struct Work {
+pub struct Solution {
+    pub(crate) v: Vec<C64>,
+    pub(crate) alg: Vec<MachAlg>,
+}
+
+/// Work buffers reused by every network solve, so that a solve allocates nothing.
+#[derive(Clone, Debug, Default)]
+pub struct Scratch {
     /// Bus current injections and the bus voltages they give.
-    pub cur: Vec<C64>,
-    pub vn: Vec<C64>,
+    cur: Vec<C64>,
+    vn: Vec<C64>,
     /// Per machine in service: its saliency terms.
-    pub sal: Vec<Sal>,
+    sal: Vec<Sal>,
     /// `I - M` (row-major) and a copy the elimination consumes; the right-hand side.
-    pub i_m: Vec<f64>,
-    pub lu: Vec<f64>,
-    pub rhs: Vec<f64>,
-    /// Stator solution of every machine at the last solve.
-    pub alg: Vec<MachAlg>,
-    /// RK4 stages: start state and voltages, stage states and derivatives, stage voltages.
-    pub x0: Vec<f64>,
-    pub v0: Vec<C64>,
-    pub xs: Vec<f64>,
-    pub vs: Vec<C64>,
-    pub k: [Vec<f64>; 4],
+    i_m: Vec<f64>,
+    lu: Vec<f64>,
+    rhs: Vec<f64>,
+}
+
+/// What injects into the network: the machines (states in `x`), the DER slots and the
+/// constant-power loads (pu on S_base, per bus).
+#[derive(Clone, Copy)]
+pub(crate) struct Injections<'a> {
+    pub machines: &'a [MachineRt],
+    pub ders: &'a [DerRt],
+    pub load_s: &'a [C64],
 }
 
 /// A machine's saliency terms in a network solve: its q-axis current is the affine function
@@ -108,6 +118,9 @@ fn solve_dense(a: &mut [f64], b: &mut [f64], n: usize) -> bool {
 /// a few columns instead of a full triangular solve.
 #[derive(Clone, Debug)]
 pub(crate) struct Network {
+    n: usize,
+    /// Bus ids of the case, for messages.
+    bus_ids: Vec<u32>,
     z: Vec<Option<DVector<C64>>>,
     sources: Vec<(usize, DVector<C64>)>,
 }
@@ -121,27 +134,25 @@ fn lowest_voltage<'a>(v: impl Iterator<Item = &'a C64>) -> (usize, f64) {
         .unwrap_or((0, f64::NAN))
 }
 
-/// Angle wrapped to (-π, π].
-pub(crate) fn wrap(a: f64) -> f64 {
-    let mut a = a % (2.0 * PI);
-    if a > PI {
-        a -= 2.0 * PI;
-    } else if a <= -PI {
-        a += 2.0 * PI;
-    }
-    a
-}
-
-impl Grid {
-    fn build_network(&self) -> Result<Network, GridError> {
-        let mut y = powerflow::ybus(&self.case, &self.branches);
-        for i in 0..self.n {
-            y[(i, i)] += self.load_y[i];
+impl Network {
+    /// Build and factorize the admittance matrix of the in-service `branches` with the case's
+    /// shunts, the constant-impedance loads `load_y`, the Norton admittances of the machines in
+    /// service and of the grid-forming slots, and the impedance columns of the source buses.
+    pub(crate) fn build(
+        case: &Case,
+        branches: &[BranchData],
+        load_y: &[C64],
+        inj: &Injections,
+    ) -> Result<Network, GridError> {
+        let n = case.buses.len();
+        let mut y = powerflow::ybus(case, branches);
+        for i in 0..n {
+            y[(i, i)] += load_y[i];
         }
-        for m in self.machines.iter().filter(|m| m.in_service) {
+        for m in inj.machines.iter().filter(|m| m.in_service) {
             y[(m.bus, m.bus)] += C64::new(1.0, 0.0) / C64::new(m.ra, m.xd_p);
         }
-        for d in self.ders.iter().filter(|d| d.kind == DerKind::GridForming) {
+        for d in inj.ders.iter().filter(|d| d.kind == DerKind::GridForming) {
             y[(d.bus, d.bus)] += d.y;
         }
         let lu = y.lu();
@@ -150,7 +161,7 @@ impl Grid {
         }
         // also reject numerically singular matrices
         let u = lu.u();
-        let (mx, mn) = (0..self.n).fold((0.0f64, f64::INFINITY), |(a, b), i| {
+        let (mx, mn) = (0..n).fold((0.0f64, f64::INFINITY), |(a, b), i| {
             let d = u[(i, i)].norm();
             (a.max(d), b.min(d))
         });
@@ -158,25 +169,25 @@ impl Grid {
             return Err(GridError::SingularNetwork);
         }
         let column = |bus: usize| {
-            let mut e = DVector::from_element(self.n, C64::new(0.0, 0.0));
+            let mut e = DVector::from_element(n, C64::new(0.0, 0.0));
             e[bus] = C64::new(1.0, 0.0);
             lu.solve(&e).ok_or(GridError::SingularNetwork)
         };
-        let mut z = Vec::with_capacity(self.machines.len());
-        for m in &self.machines {
+        let mut z = Vec::with_capacity(inj.machines.len());
+        for m in inj.machines {
             z.push(if m.in_service {
                 Some(column(m.bus)?)
             } else {
                 None
             });
         }
-        let mut buses: Vec<usize> = self
+        let mut buses: Vec<usize> = inj
             .machines
             .iter()
             .filter(|m| m.in_service)
             .map(|m| m.bus)
-            .chain(self.ders.iter().map(|d| d.bus))
-            .chain((0..self.n).filter(|&i| self.load_s[i].norm_sqr() > 0.0))
+            .chain(inj.ders.iter().map(|d| d.bus))
+            .chain((0..n).filter(|&i| inj.load_s[i].norm_sqr() > 0.0))
             .collect();
         buses.sort_unstable();
         buses.dedup();
@@ -184,18 +195,16 @@ impl Grid {
             .into_iter()
             .map(|b| Ok((b, column(b)?)))
             .collect::<Result<_, GridError>>()?;
-        Ok(Network { z, sources })
+        Ok(Network {
+            n,
+            bus_ids: case.buses.iter().map(|b| b.id).collect(),
+            z,
+            sources,
+        })
     }
 
-    pub(crate) fn ensure_lu(&mut self) -> Result<(), GridError> {
-        if self.net.is_none() {
-            self.net = Some(self.build_network()?);
-        }
-        Ok(())
-    }
-
-    /// Network solution for states `x`: `v` holds the starting guess and receives the bus
-    /// voltages, `w.alg` the machines' stator solutions.
+    /// Network solution for states `x` at time `t` (for messages): `sol.v` holds the starting
+    /// guess and receives the bus voltages, `sol.alg` the machines' stator solutions.
     ///
     /// The saliency of the two-axis machines (x'_q ≠ x'_d) makes each machine's current
     /// real-linear but not complex-linear in its terminal voltage. It is solved exactly: with
@@ -204,27 +213,24 @@ impl Grid {
     /// equations `s_j = i_q,j(V)` form a small real linear system in `s`. Only the voltage-
     /// dependent injections (grid-following slots, constant-power loads) need the fixed-point
     /// iteration on `V`.
-    pub(crate) fn solve_net(
+    pub(crate) fn solve(
         &self,
+        inj: &Injections,
         x: &[f64],
-        v: &mut [C64],
-        w: &mut Work,
+        sol: &mut Solution,
+        w: &mut Scratch,
+        t: f64,
     ) -> Result<(), GridError> {
-        if !self.energized() {
-            // Nothing holds a voltage: current injections alone define no angle (a grid-
-            // following unit follows the voltage it measures), so the network is dead.
-            v.fill(C64::new(0.0, 0.0));
-            return Ok(());
-        }
-        let net = self.net.as_ref().ok_or(GridError::SingularNetwork)?;
+        let net = self;
+        let v = &mut sol.v[..];
         let n = self.n;
-        let iterate = self
+        let iterate = inj
             .ders
             .iter()
             .any(|d| d.kind == DerKind::GridFollowing || d.limit != SlotLimit::NONE)
-            || self.load_s.iter().any(|s| s.norm_sqr() > 0.0);
+            || inj.load_s.iter().any(|s| s.norm_sqr() > 0.0);
         w.sal.clear();
-        for (j, m) in self.machines.iter().enumerate() {
+        for (j, m) in inj.machines.iter().enumerate() {
             if !m.in_service {
                 continue;
             }
@@ -261,13 +267,13 @@ impl Grid {
             w.cur.resize(n, C64::new(0.0, 0.0));
             let cur = &mut w.cur;
             for sm in &w.sal {
-                let m = &self.machines[sm.j];
+                let m = &inj.machines[sm.j];
                 let xm = m.own(x);
                 // E'' in the network frame (rot is a unit phasor), through the Norton admittance.
                 let e2 = C64::new(xm[state::ED_P], xm[state::EQ_P]) * sm.rot.conj();
                 cur[m.bus] += e2 / C64::new(m.ra, m.xd_p);
             }
-            for d in &self.ders {
+            for d in inj.ders {
                 match d.input {
                     DerInput::GridForming { theta, e } => {
                         // The Norton source (its admittance is in the matrix) and, when a limit
@@ -289,7 +295,7 @@ impl Grid {
                 }
             }
             for i in 0..n {
-                let s = self.load_s[i];
+                let s = inj.load_s[i];
                 if s.norm_sqr() > 0.0 {
                     if v[i].norm_sqr() >= CONST_POWER_V_MIN * CONST_POWER_V_MIN {
                         cur[i] -= (s / v[i]).conj();
@@ -351,69 +357,129 @@ impl Grid {
             let settled = residual < NET_TOL || (it + 1 == NET_MAX_ITER && residual < NET_ACCEPT);
             if !iterate || settled {
                 // Stator solutions, with the rotations of the machines in service from `sal`.
-                w.alg.clear();
+                sol.alg.clear();
                 let mut sal = w.sal.iter().peekable();
-                for (j, m) in self.machines.iter().enumerate() {
+                for (j, m) in inj.machines.iter().enumerate() {
                     let xm = m.own(x);
                     let r = match sal.next_if(|sm| sm.j == j) {
                         Some(sm) => sm.rot,
                         None => rot(xm[state::DELTA]),
                     };
-                    w.alg.push(m.stator(xm, v[m.bus], r));
+                    sol.alg.push(m.stator(xm, v[m.bus], r));
                 }
                 return Ok(());
             }
         }
         let (i_min, v_min) = weakest;
-        let id = |i: usize| self.case.buses.get(i).map_or(0, |b| b.id);
+        let id = |i: usize| self.bus_ids.get(i).copied().unwrap_or(0);
         Err(GridError::NetworkNotConverged {
-            t: self.t,
+            t,
             residual,
             bus: id(i_min),
             v_min,
             mismatch_bus: id(worst),
         })
     }
+}
 
-    /// Re-solve the network at the current state (after input or topology changes).
-    pub fn resolve(&mut self) -> Result<(), GridError> {
-        self.ensure_lu()?;
-        // Solve on a copy: a failed solve leaves the voltages as they were.
-        let mut w = std::mem::take(&mut self.work);
-        let mut v = std::mem::take(&mut w.vs);
-        v.clone_from(&self.v);
-        let solved = self.solve_net(&self.x, &mut v, &mut w);
-        if solved.is_ok() {
-            std::mem::swap(&mut self.v, &mut v);
-        }
-        w.vs = v;
-        self.work = w;
-        solved?;
-        self.update_angles();
-        Ok(())
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::der::DerSetpoint;
+
+    /// Two buses joined by a line (r + jx, no charging): a grid-forming slot at bus 1 behind
+    /// j0.1 pu, a load at bus 2.
+    fn two_bus() -> (Case, Vec<BranchData>) {
+        let case: Case = toml::from_str(
+            "base_mva = 100.0\nf_nom = 50.0\n\
+             [[bus]]\nid = 1\nkind = \"slack\"\n[[bus]]\nid = 2\n\
+             [[line]]\nfrom = 1\nto = 2\nr = 0.01\nx = 0.05\n",
+        )
+        .unwrap();
+        let branches = case.branches();
+        (case, branches)
     }
 
-    pub(crate) fn update_angles(&mut self) {
-        for (k, d) in self.ders.iter().enumerate() {
-            let a = self.v[d.bus].arg();
-            self.der_angle[k] += wrap(a - self.der_angle[k]);
-        }
-        let a = self.v[self.pcc_bus].arg();
-        self.pcc_angle += wrap(a - self.pcc_angle);
-        for (k, p) in self.pocs.iter().enumerate() {
-            let a = self.v[p.bus].arg();
-            self.poc_angle[k] += wrap(a - self.poc_angle[k]);
+    fn slot(e: f64, theta: f64) -> DerRt {
+        DerRt {
+            kind: DerKind::GridForming,
+            bus: 0,
+            y: C64::new(1.0, 0.0) / C64::new(0.0, 0.1),
+            input: DerInput::GridForming { theta, e },
+            initial: DerSetpoint::GridForming {
+                theta0: theta,
+                e0: e,
+            },
+            rating: 1.0,
+            limit: SlotLimit::NONE,
         }
     }
 
-    /// Complex powers entering a branch at its `from` and `to` ends (current bus voltages).
-    pub(crate) fn branch_flows(&self, br: &BranchData) -> (C64, C64) {
-        let ys = C64::new(1.0, 0.0) / C64::new(br.r, br.x);
-        let hb = C64::new(0.0, br.b / 2.0);
-        let (vf, vt) = (self.v[br.from], self.v[br.to]);
-        let t = br.tap;
-        let i_f = (ys / (t * t) + hb) * vf - ys / t * vt;
-        let i_t = (ys + hb) * vt - ys / t * vf;
-        (vf * i_f.conj(), vt * i_t.conj())
+    #[test]
+    fn linear_network_is_a_voltage_divider() {
+        let (case, branches) = two_bus();
+        let ders = [slot(1.05, 0.2)];
+        let y_load = C64::new(0.8, -0.3);
+        let load_y = [C64::new(0.0, 0.0), y_load];
+        let load_s = [C64::new(0.0, 0.0); 2];
+        let inj = Injections {
+            machines: &[],
+            ders: &ders,
+            load_s: &load_s,
+        };
+        let net = Network::build(&case, &branches, &load_y, &inj).unwrap();
+        let mut sol = Solution {
+            v: vec![C64::new(1.0, 0.0); 2],
+            alg: Vec::new(),
+        };
+        let mut w = Scratch::default();
+        net.solve(&inj, &[], &mut sol, &mut w, 0.0).unwrap();
+        let e = C64::from_polar(1.05, 0.2);
+        let (zs, zl, zload) = (C64::new(0.0, 0.1), C64::new(0.01, 0.05), 1.0 / y_load);
+        let v2 = e * zload / (zs + zl + zload);
+        let v1 = e * (zl + zload) / (zs + zl + zload);
+        assert!((sol.v[0] - v1).norm() < 1e-12, "{:?} vs {v1}", sol.v[0]);
+        assert!((sol.v[1] - v2).norm() < 1e-12, "{:?} vs {v2}", sol.v[1]);
+    }
+
+    #[test]
+    fn constant_power_load_draws_its_power() {
+        let (case, branches) = two_bus();
+        let ders = [slot(1.0, 0.0)];
+        let load_y = [C64::new(0.0, 0.0); 2];
+        let s = C64::new(0.5, 0.2);
+        let load_s = [C64::new(0.0, 0.0), s];
+        let inj = Injections {
+            machines: &[],
+            ders: &ders,
+            load_s: &load_s,
+        };
+        let net = Network::build(&case, &branches, &load_y, &inj).unwrap();
+        let mut sol = Solution {
+            v: vec![C64::new(1.0, 0.0); 2],
+            alg: Vec::new(),
+        };
+        net.solve(&inj, &[], &mut sol, &mut Scratch::default(), 0.0)
+            .unwrap();
+        // The current through the line is the load's: V2 conj(I) = S.
+        let i = (sol.v[0] - sol.v[1]) / C64::new(0.01, 0.05);
+        let drawn = sol.v[1] * i.conj();
+        assert!((drawn - s).norm() < 1e-10, "{drawn}");
+        assert!(sol.v[1].norm() > CONST_POWER_V_MIN);
+    }
+
+    #[test]
+    fn floating_network_is_singular() {
+        let (case, branches) = two_bus();
+        let zero = [C64::new(0.0, 0.0); 2];
+        let inj = Injections {
+            machines: &[],
+            ders: &[],
+            load_s: &zero,
+        };
+        assert!(matches!(
+            Network::build(&case, &branches, &zero, &inj),
+            Err(GridError::SingularNetwork)
+        ));
     }
 }

@@ -1,10 +1,10 @@
 //! Newton–Raphson power flow (polar form) and the bus admittance matrix of the passive network.
 
 use crate::case::{BranchData, BusKind, Case};
-use nalgebra::{Complex, DMatrix, DVector};
+use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
-pub type C64 = Complex<f64>;
+pub use crate::numerics::C64;
 
 /// Power-flow result: bus voltages and the P, Q each source delivers (system base, pu).
 #[derive(Clone, Debug, Serialize, Deserialize)]

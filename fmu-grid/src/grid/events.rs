@@ -1,9 +1,9 @@
 //! Scheduled events (load steps, generator and line trips): their state, overrides and firing.
 
+use super::Grid;
 use crate::case::{Event, LoadModel};
-use crate::grid::{Grid, GridError};
-use crate::integration::EVENT_EPS;
-use crate::powerflow::C64;
+use crate::error::GridError;
+use crate::numerics::{C64, EVENT_EPS};
 use serde::{Deserialize, Serialize};
 
 /// Changes to a scheduled event (None keeps the case value).
@@ -123,7 +123,7 @@ impl Grid {
                     let s = C64::new(dp_mw, dq_mvar) / self.sb;
                     match model {
                         LoadModel::ConstantImpedance => {
-                            self.load_y[b] += s.conj() / self.v[b].norm_sqr().max(1e-6)
+                            self.load_y[b] += s.conj() / self.sol.v[b].norm_sqr().max(1e-6)
                         }
                         LoadModel::ConstantPower => self.load_s[b] += s,
                     }

@@ -1,7 +1,7 @@
 //! Serialization of a [`Grid`] (FMU states): the case as TOML text plus the evolving state.
 
+use super::events::EventState;
 use crate::case::{Case, Event};
-use crate::events::EventState;
 use crate::grid::{DerInput, Grid, SlotLimit};
 use crate::powerflow::C64;
 use serde::{Deserialize, Serialize};
@@ -56,7 +56,7 @@ impl GridSnapshot {
             der_limits: g.ders.iter().map(|d| d.limit).collect(),
             x: g.x.clone(),
             t: g.t,
-            v: g.v.clone(),
+            v: g.sol.v.clone(),
             der_angle: g.der_angle.clone(),
             pcc_angle: g.pcc_angle,
             poc_angle: g.poc_angle.clone(),
@@ -113,7 +113,7 @@ impl GridSnapshot {
         g.load_s = self.load_s;
         g.x = self.x;
         g.t = self.t;
-        g.v = self.v;
+        g.sol.v = self.v;
         g.der_angle = self.der_angle;
         g.pcc_angle = self.pcc_angle;
         g.poc_angle = self.poc_angle;

@@ -268,14 +268,7 @@ impl Setup {
                 "fuzz: the original case1_load did not run: {}",
                 ran.stderr
             ))?;
-        let dir = root.join("xtask").join("scenarios");
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-            .map_err(|e| format!("{}: {e}", dir.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x == "toml"))
-            .collect();
-        files.sort();
-        for f in files {
+        for f in super::shipped_scenarios()? {
             let name = f
                 .file_stem()
                 .map(|s| s.to_string_lossy().into_owned())

@@ -15,13 +15,24 @@ macro_rules! dl_api {
             const NAMES: &'static [&'static str] = &[$($name),*];
 
             /// Resolve every function; the first missing one is named.
+            ///
+            /// # Safety
+            /// `lib` is a live handle from `dlopen` whose symbols of these names have these
+            /// C signatures.
             unsafe fn resolve(lib: *mut std::ffi::c_void) -> Result<Api, String> {
                 Ok(Api { $($field: {
-                    let sym = libc::dlsym(lib, concat!($name, "\0").as_ptr() as *const std::ffi::c_char);
+                    // SAFETY: a live handle and a NUL-terminated name.
+                    let sym = unsafe {
+                        libc::dlsym(lib, concat!($name, "\0").as_ptr() as *const std::ffi::c_char)
+                    };
                     if sym.is_null() {
                         return Err(format!($missing, $name));
                     }
-                    std::mem::transmute::<*mut std::ffi::c_void, unsafe extern "C" fn($($arg),*) $(-> $ret)?>(sym)
+                    // SAFETY: a non-null symbol of this name has this signature (the caller's
+                    // contract).
+                    unsafe {
+                        std::mem::transmute::<*mut std::ffi::c_void, unsafe extern "C" fn($($arg),*) $(-> $ret)?>(sym)
+                    }
                 },)* })
             }
         }

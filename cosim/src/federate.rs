@@ -772,9 +772,9 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
         }
     }
     let fed_ptr = fed.fed;
-    // SAFETY: a live federate.
     helics.call(
         "helicsFederateEnterExecutingMode (is every federate of the system running?)",
+        // SAFETY: a live federate.
         |e| unsafe { (helics.api.enter_executing_mode)(fed_ptr, e) },
     )?;
     let run_started = Instant::now();
@@ -839,9 +839,11 @@ fn create_federate(h: &Helics, name: &str, core: &str, broker: &str) -> Result<H
             "--federates=1 --broker={broker} --timeout={}s",
             JOIN_TIMEOUT.as_secs()
         ))?;
+        // SAFETY: a live federate info; the string lives across the call.
         h.call("set core init string", |e| unsafe {
             (h.api.info_core_init)(info, init.as_ptr(), e)
         })?;
+        // SAFETY: a live federate info.
         h.call("set uninterruptible", |e| unsafe {
             (h.api.info_flag)(info, HELICS_FLAG_UNINTERRUPTIBLE, 1, e)
         })?;
@@ -853,6 +855,7 @@ fn create_federate(h: &Helics, name: &str, core: &str, broker: &str) -> Result<H
                  the broker running, is the name unique?)",
                 JOIN_TIMEOUT.as_secs()
             ),
+            // SAFETY: a live federate info; the name lives across the call.
             |e| unsafe { (h.api.create_value_federate)(n.as_ptr(), info, e) },
         )?;
         if fed.is_null() {

@@ -136,6 +136,7 @@ impl Offered {
 // SAFETY: the handle and the function pointers are plain addresses that any thread may use;
 // the library's functions are called per instance (see `Instance`), never through `Library`.
 unsafe impl Send for Library {}
+// SAFETY: as for `Send`: nothing in `Library` is mutated through a shared reference.
 unsafe impl Sync for Library {}
 
 impl Library {
@@ -568,9 +569,15 @@ unsafe extern "C" fn dvpp_cosim_log_sink(
     message: *const c_char,
 ) {
     // A panic (e.g. stderr gone) must not unwind into the FMU's C frames: drop the message.
-    let _ = std::panic::catch_unwind(|| log_sink(env, name, status, category, message));
+    // SAFETY: the arguments as the FMU passed them (see `log_sink`).
+    let _ = std::panic::catch_unwind(|| unsafe { log_sink(env, name, status, category, message) });
 }
 
+/// Record one message of an FMU.
+///
+/// # Safety
+/// `env` is NULL or the `LogSink` this master gave the instance as its environment, alive while
+/// the instance is; `category` and `message` are NULL or NUL-terminated strings.
 unsafe fn log_sink(
     env: *mut c_void,
     _name: *const c_char,
@@ -578,14 +585,16 @@ unsafe fn log_sink(
     category: *const c_char,
     message: *const c_char,
 ) {
-    let Some(sink) = (env as *const LogSink).as_ref() else {
+    // SAFETY: NULL or our live `LogSink` (the contract above).
+    let Some(sink) = (unsafe { (env as *const LogSink).as_ref() }) else {
         return;
     };
     let text = |p: *const c_char| {
         if p.is_null() {
             String::new()
         } else {
-            CStr::from_ptr(p).to_string_lossy().into_owned()
+            // SAFETY: a non-null NUL-terminated string (the contract above).
+            unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned()
         }
     };
     // The C shim already substituted the printf arguments (and turned `%%` into `%`).
@@ -607,11 +616,13 @@ unsafe fn log_sink(
 }
 
 unsafe extern "C" fn alloc_callback(n: usize, size: usize) -> *mut c_void {
-    libc::calloc(n, size)
+    // SAFETY: calloc accepts any sizes (NULL when it cannot).
+    unsafe { libc::calloc(n, size) }
 }
 
 unsafe extern "C" fn free_callback(p: *mut c_void) {
-    libc::free(p)
+    // SAFETY: the FMU frees what `alloc_callback` gave it (or NULL), as FMI 2.0 requires.
+    unsafe { libc::free(p) }
 }
 
 /// An instance of a loaded FMU; freed on drop.

@@ -35,14 +35,17 @@ unsafe fn with_instance<M: Model>(
     call: Call,
     f: impl FnOnce(&mut Instance<M>) -> Status,
 ) -> Status {
-    if c.is_null() {
-        return Status::Error;
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        if c.is_null() {
+            return Status::Error;
+        }
+        let inst = &mut *(c as *mut Instance<M>);
+        if inst.tag != model_tag::<M>() {
+            return Status::Error;
+        }
+        guarded(inst, call, f)
     }
-    let inst = &mut *(c as *mut Instance<M>);
-    if inst.tag != model_tag::<M>() {
-        return Status::Error;
-    }
-    guarded(inst, call, f)
 }
 
 /// Run `f` on `inst` if `call` is legal in its state: the state mask, the escalation of
@@ -103,10 +106,13 @@ pub fn guarded<M: Model>(
 }
 
 unsafe fn c_str<'a>(p: *const c_char) -> Option<&'a str> {
-    if p.is_null() {
-        None
-    } else {
-        CStr::from_ptr(p).to_str().ok()
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        if p.is_null() {
+            None
+        } else {
+            CStr::from_ptr(p).to_str().ok()
+        }
     }
 }
 
@@ -123,27 +129,30 @@ pub unsafe fn instantiate<M: Model>(
     _visible: fmi2Boolean,
     logging_on: fmi2Boolean,
 ) -> fmi2Component {
-    let Some(functions) = functions.as_ref() else {
-        return std::ptr::null_mut();
-    };
-    if functions.logger.is_none() {
-        return std::ptr::null_mut();
-    }
-    let sink = LogSink::Callback {
-        callback: functions.logger,
-        environment: functions.component_environment,
-    };
-    let instance = instantiate_from::<M>(
-        c_str(instance_name).unwrap_or(""),
-        fmu_type,
-        c_str(guid),
-        c_str(resource_location),
-        sink,
-        logging_on != 0,
-    );
-    match instance {
-        Some(inst) => Box::into_raw(inst) as fmi2Component,
-        None => std::ptr::null_mut(),
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        let Some(functions) = functions.as_ref() else {
+            return std::ptr::null_mut();
+        };
+        if functions.logger.is_none() {
+            return std::ptr::null_mut();
+        }
+        let sink = LogSink::Callback {
+            callback: functions.logger,
+            environment: functions.component_environment,
+        };
+        let instance = instantiate_from::<M>(
+            c_str(instance_name).unwrap_or(""),
+            fmu_type,
+            c_str(guid),
+            c_str(resource_location),
+            sink,
+            logging_on != 0,
+        );
+        match instance {
+            Some(inst) => Box::into_raw(inst) as fmi2Component,
+            None => std::ptr::null_mut(),
+        }
     }
 }
 
@@ -231,14 +240,17 @@ pub fn instantiate_config<M: Model>(
 /// # Safety
 /// `c` as returned by [`instantiate`]; not used afterwards.
 pub unsafe fn free_instance<M: Model>(c: fmi2Component) {
-    if c.is_null() || (*(c as *mut Instance<M>)).tag != model_tag::<M>() {
-        return;
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        if c.is_null() || (*(c as *mut Instance<M>)).tag != model_tag::<M>() {
+            return;
+        }
+        let _ = catch_unwind(AssertUnwindSafe(|| {
+            let mut inst = Box::from_raw(c as *mut Instance<M>);
+            inst.tag = 0;
+            drop(inst);
+        }));
     }
-    let _ = catch_unwind(AssertUnwindSafe(|| {
-        let mut inst = Box::from_raw(c as *mut Instance<M>);
-        inst.tag = 0;
-        drop(inst);
-    }));
 }
 
 /// `fmi2SetDebugLogging`.
@@ -251,18 +263,21 @@ pub unsafe fn set_debug_logging<M: Model>(
     n: usize,
     categories: *const fmi2String,
 ) -> Status {
-    with_instance::<M>(c, Call::SetDebugLogging, |inst| {
-        if n > 0 && categories.is_null() {
-            return inst.error("fmi2SetDebugLogging: categories is NULL");
-        }
-        let names: Option<Vec<String>> = (0..n)
-            .map(|i| c_str(*categories.add(i)).map(str::to_owned))
-            .collect();
-        let Some(names) = names else {
-            return inst.error("fmi2SetDebugLogging: a category name is NULL or not UTF-8");
-        };
-        debug_logging(inst, on != 0, &names)
-    })
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::SetDebugLogging, |inst| {
+            if n > 0 && categories.is_null() {
+                return inst.error("fmi2SetDebugLogging: categories is NULL");
+            }
+            let names: Option<Vec<String>> = (0..n)
+                .map(|i| c_str(*categories.add(i)).map(str::to_owned))
+                .collect();
+            let Some(names) = names else {
+                return inst.error("fmi2SetDebugLogging: a category name is NULL or not UTF-8");
+            };
+            debug_logging(inst, on != 0, &names)
+        })
+    }
 }
 
 /// The body of `fmi2SetDebugLogging` once its category names are decoded.
@@ -285,9 +300,12 @@ pub unsafe fn setup_experiment<M: Model>(
     stop_defined: fmi2Boolean,
     stop: f64,
 ) -> Status {
-    with_instance::<M>(c, Call::SetupExperiment, |inst| {
-        inst.setup_experiment(start, (stop_defined != 0).then_some(stop))
-    })
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::SetupExperiment, |inst| {
+            inst.setup_experiment(start, (stop_defined != 0).then_some(stop))
+        })
+    }
 }
 
 /// `fmi2EnterInitializationMode`, `fmi2ExitInitializationMode`, `fmi2Terminate`, `fmi2Reset`.
@@ -295,7 +313,8 @@ pub unsafe fn setup_experiment<M: Model>(
 /// # Safety
 /// FMI 2.0 pointer rules.
 pub unsafe fn transition<M: Model>(c: fmi2Component, call: Call) -> Status {
-    with_instance::<M>(c, call, |inst| apply_transition(inst, call))
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe { with_instance::<M>(c, call, |inst| apply_transition(inst, call)) }
 }
 
 /// The body of the four state transitions.
@@ -317,13 +336,16 @@ unsafe fn slices<'a, V>(
     nvr: usize,
     values: *const V,
 ) -> Option<(&'a [u32], *const V)> {
-    if nvr == 0 {
-        return Some((&[], values));
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        if nvr == 0 {
+            return Some((&[], values));
+        }
+        if vr.is_null() || values.is_null() {
+            return None;
+        }
+        Some((std::slice::from_raw_parts(vr, nvr), values))
     }
-    if vr.is_null() || values.is_null() {
-        return None;
-    }
-    Some((std::slice::from_raw_parts(vr, nvr), values))
 }
 
 /// `fmi2Get{Real,Integer,Boolean,String}`: `read` copies value `vr` to position `i`.
@@ -338,12 +360,15 @@ pub unsafe fn get<M: Model, V>(
     out: *mut V,
     read: impl Fn(&mut Instance<M>, u32) -> V,
 ) -> Status {
-    with_instance::<M>(c, Call::Get(t), |inst| {
-        let Some((vrs, _)) = slices(vr, nvr, out as *const V) else {
-            return inst.error(format!("fmi2Get{t}: NULL array"));
-        };
-        get_values(inst, t, vrs, |inst, i, r| out.add(i).write(read(inst, r)))
-    })
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::Get(t), |inst| {
+            let Some((vrs, _)) = slices(vr, nvr, out as *const V) else {
+                return inst.error(format!("fmi2Get{t}: NULL array"));
+            };
+            get_values(inst, t, vrs, |inst, i, r| out.add(i).write(read(inst, r)))
+        })
+    }
 }
 
 /// The body of `fmi2Get{t}`: `write(inst, i, vr)` delivers value `vr` at position `i`; nothing
@@ -395,12 +420,15 @@ pub unsafe fn set<M: Model, V: Copy>(
     values: *const V,
     convert: impl Fn(V) -> Option<Value>,
 ) -> Status {
-    with_instance::<M>(c, Call::Set(t), |inst| {
-        let Some((vrs, values)) = slices(vr, nvr, values) else {
-            return inst.error(format!("fmi2Set{t}: NULL array"));
-        };
-        set_values(inst, t, vrs, |i| convert(*values.add(i)))
-    })
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::Set(t), |inst| {
+            let Some((vrs, values)) = slices(vr, nvr, values) else {
+                return inst.error(format!("fmi2Set{t}: NULL array"));
+            };
+            set_values(inst, t, vrs, |i| convert(*values.add(i)))
+        })
+    }
 }
 
 /// The body of `fmi2Set{t}`: `value(i)` is the value for `vrs[i]` (`None`: NULL or not UTF-8);
@@ -452,7 +480,8 @@ pub fn string_out<M: Model>(inst: &mut Instance<M>, vr: u32) -> fmi2String {
 /// # Safety
 /// `p` is NULL or a NUL-terminated string.
 pub unsafe fn string_in(p: fmi2String) -> Option<Value> {
-    c_str(p).map(|s| Value::String(s.to_owned()))
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe { c_str(p).map(|s| Value::String(s.to_owned())) }
 }
 
 /// `fmi2DoStep`.
@@ -460,7 +489,8 @@ pub unsafe fn string_in(p: fmi2String) -> Option<Value> {
 /// # Safety
 /// FMI 2.0 pointer rules.
 pub unsafe fn do_step<M: Model>(c: fmi2Component, t: f64, h: f64) -> Status {
-    with_instance::<M>(c, Call::DoStep, |inst| inst.do_step(t, h))
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe { with_instance::<M>(c, Call::DoStep, |inst| inst.do_step(t, h)) }
 }
 
 /// `fmi2GetFMUstate`: a new snapshot, or an overwrite of the one `state` points to.
@@ -468,32 +498,40 @@ pub unsafe fn do_step<M: Model>(c: fmi2Component, t: f64, h: f64) -> Status {
 /// # Safety
 /// FMI 2.0 pointer rules.
 pub unsafe fn get_fmu_state<M: Model>(c: fmi2Component, state: *mut fmi2FMUstate) -> Status {
-    with_instance::<M>(c, Call::FmuState, |inst| {
-        if state.is_null() {
-            return inst.error("fmi2GetFMUstate: FMUstate is NULL");
-        }
-        let core = inst.core.clone();
-        match (*state as *mut Snapshot<M>).as_mut() {
-            Some(snap) if snap.tag == inst.tag => snap.core = core,
-            Some(_) => return inst.error("fmi2GetFMUstate: *FMUstate is not a state of this FMU"),
-            None => {
-                *state = Box::into_raw(Box::new(Snapshot {
-                    tag: inst.tag,
-                    core,
-                })) as fmi2FMUstate
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::FmuState, |inst| {
+            if state.is_null() {
+                return inst.error("fmi2GetFMUstate: FMUstate is NULL");
             }
-        }
-        Status::Ok
-    })
+            let core = inst.core.clone();
+            match (*state as *mut Snapshot<M>).as_mut() {
+                Some(snap) if snap.tag == inst.tag => snap.core = core,
+                Some(_) => {
+                    return inst.error("fmi2GetFMUstate: *FMUstate is not a state of this FMU")
+                }
+                None => {
+                    *state = Box::into_raw(Box::new(Snapshot {
+                        tag: inst.tag,
+                        core,
+                    })) as fmi2FMUstate
+                }
+            }
+            Status::Ok
+        })
+    }
 }
 
 unsafe fn snapshot<'a, M: Model>(
     inst: &Instance<M>,
     state: fmi2FMUstate,
 ) -> Result<&'a Snapshot<M>, Status> {
-    match (state as *const Snapshot<M>).as_ref() {
-        Some(s) if s.tag == inst.tag => Ok(s),
-        _ => Err(inst.error("FMUstate is NULL or not a state of this FMU")),
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        match (state as *const Snapshot<M>).as_ref() {
+            Some(s) if s.tag == inst.tag => Ok(s),
+            _ => Err(inst.error("FMUstate is NULL or not a state of this FMU")),
+        }
     }
 }
 
@@ -502,13 +540,16 @@ unsafe fn snapshot<'a, M: Model>(
 /// # Safety
 /// FMI 2.0 pointer rules.
 pub unsafe fn set_fmu_state<M: Model>(c: fmi2Component, state: fmi2FMUstate) -> Status {
-    with_instance::<M>(c, Call::FmuState, |inst| match snapshot(inst, state) {
-        Ok(s) => {
-            inst.core = s.core.clone();
-            Status::Ok
-        }
-        Err(status) => status,
-    })
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::FmuState, |inst| match snapshot(inst, state) {
+            Ok(s) => {
+                inst.core = s.core.clone();
+                Status::Ok
+            }
+            Err(status) => status,
+        })
+    }
 }
 
 /// `fmi2FreeFMUstate`.
@@ -516,19 +557,22 @@ pub unsafe fn set_fmu_state<M: Model>(c: fmi2Component, state: fmi2FMUstate) -> 
 /// # Safety
 /// FMI 2.0 pointer rules.
 pub unsafe fn free_fmu_state<M: Model>(c: fmi2Component, state: *mut fmi2FMUstate) -> Status {
-    with_instance::<M>(c, Call::FmuState, |inst| {
-        if state.is_null() || (*state).is_null() {
-            return Status::Ok;
-        }
-        if let Err(status) = snapshot(inst, *state) {
-            return status;
-        }
-        let mut snap = Box::from_raw(*state as *mut Snapshot<M>);
-        snap.tag = 0;
-        drop(snap);
-        *state = std::ptr::null_mut();
-        Status::Ok
-    })
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::FmuState, |inst| {
+            if state.is_null() || (*state).is_null() {
+                return Status::Ok;
+            }
+            if let Err(status) = snapshot(inst, *state) {
+                return status;
+            }
+            let mut snap = Box::from_raw(*state as *mut Snapshot<M>);
+            snap.tag = 0;
+            drop(snap);
+            *state = std::ptr::null_mut();
+            Status::Ok
+        })
+    }
 }
 
 /// `fmi2SerializedFMUstateSize`.
@@ -540,22 +584,25 @@ pub unsafe fn serialized_size<M: Model>(
     state: fmi2FMUstate,
     size: *mut usize,
 ) -> Status {
-    with_instance::<M>(c, Call::FmuState, |inst| {
-        let snap = match snapshot(inst, state) {
-            Ok(s) => s,
-            Err(status) => return status,
-        };
-        if size.is_null() {
-            return inst.error("fmi2SerializedFMUstateSize: size is NULL");
-        }
-        match inst.serialize(&snap.core) {
-            Ok(bytes) => {
-                *size = bytes.len();
-                Status::Ok
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::FmuState, |inst| {
+            let snap = match snapshot(inst, state) {
+                Ok(s) => s,
+                Err(status) => return status,
+            };
+            if size.is_null() {
+                return inst.error("fmi2SerializedFMUstateSize: size is NULL");
             }
-            Err(e) => inst.error(e),
-        }
-    })
+            match inst.serialize(&snap.core) {
+                Ok(bytes) => {
+                    *size = bytes.len();
+                    Status::Ok
+                }
+                Err(e) => inst.error(e),
+            }
+        })
+    }
 }
 
 /// `fmi2SerializeFMUstate`.
@@ -568,23 +615,26 @@ pub unsafe fn serialize<M: Model>(
     out: *mut fmi2Byte,
     size: usize,
 ) -> Status {
-    with_instance::<M>(c, Call::FmuState, |inst| {
-        let snap = match snapshot(inst, state) {
-            Ok(s) => s,
-            Err(status) => return status,
-        };
-        match inst.serialize(&snap.core) {
-            Ok(bytes) if !out.is_null() && bytes.len() <= size => {
-                std::ptr::copy_nonoverlapping(bytes.as_ptr(), out as *mut u8, bytes.len());
-                Status::Ok
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::FmuState, |inst| {
+            let snap = match snapshot(inst, state) {
+                Ok(s) => s,
+                Err(status) => return status,
+            };
+            match inst.serialize(&snap.core) {
+                Ok(bytes) if !out.is_null() && bytes.len() <= size => {
+                    std::ptr::copy_nonoverlapping(bytes.as_ptr(), out as *mut u8, bytes.len());
+                    Status::Ok
+                }
+                Ok(bytes) => inst.error(format!(
+                    "fmi2SerializeFMUstate: buffer of {size} bytes, {} needed",
+                    bytes.len()
+                )),
+                Err(e) => inst.error(e),
             }
-            Ok(bytes) => inst.error(format!(
-                "fmi2SerializeFMUstate: buffer of {size} bytes, {} needed",
-                bytes.len()
-            )),
-            Err(e) => inst.error(e),
-        }
-    })
+        })
+    }
 }
 
 /// `fmi2DeSerializeFMUstate`.
@@ -597,29 +647,33 @@ pub unsafe fn deserialize<M: Model>(
     size: usize,
     state: *mut fmi2FMUstate,
 ) -> Status {
-    with_instance::<M>(c, Call::FmuState, |inst| {
-        if bytes.is_null() || state.is_null() {
-            return inst.error("fmi2DeSerializeFMUstate: NULL argument");
-        }
-        let data = std::slice::from_raw_parts(bytes as *const u8, size);
-        let core = match deserialize_core(inst, data) {
-            Ok(core) => core,
-            Err(status) => return status,
-        };
-        match (*state as *mut Snapshot<M>).as_mut() {
-            Some(snap) if snap.tag == inst.tag => snap.core = core,
-            Some(_) => {
-                return inst.error("fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU")
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::FmuState, |inst| {
+            if bytes.is_null() || state.is_null() {
+                return inst.error("fmi2DeSerializeFMUstate: NULL argument");
             }
-            None => {
-                *state = Box::into_raw(Box::new(Snapshot {
-                    tag: inst.tag,
-                    core,
-                })) as fmi2FMUstate
+            let data = std::slice::from_raw_parts(bytes as *const u8, size);
+            let core = match deserialize_core(inst, data) {
+                Ok(core) => core,
+                Err(status) => return status,
+            };
+            match (*state as *mut Snapshot<M>).as_mut() {
+                Some(snap) if snap.tag == inst.tag => snap.core = core,
+                Some(_) => {
+                    return inst
+                        .error("fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU")
+                }
+                None => {
+                    *state = Box::into_raw(Box::new(Snapshot {
+                        tag: inst.tag,
+                        core,
+                    })) as fmi2FMUstate
+                }
             }
-        }
-        Status::Ok
-    })
+            Status::Ok
+        })
+    }
 }
 
 /// The body of `fmi2DeSerializeFMUstate`: the state in `bytes`, or the logged error.
@@ -633,7 +687,8 @@ pub fn deserialize_core<M: Model>(inst: &Instance<M>, bytes: &[u8]) -> Result<Co
 /// # Safety
 /// FMI 2.0 pointer rules.
 pub unsafe fn unsupported<M: Model>(c: fmi2Component, call: Call) -> Status {
-    with_instance::<M>(c, call, |inst| unsupported_body(inst, call))
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe { with_instance::<M>(c, call, |inst| unsupported_body(inst, call)) }
 }
 
 /// The body of an optional function this FMU does not provide.
@@ -655,12 +710,15 @@ pub unsafe fn get_status<M: Model, V>(
     out: *mut V,
     read: impl Fn(&Instance<M>, fmi2StatusKind) -> Option<V>,
 ) -> Status {
-    with_instance::<M>(c, Call::GetStatus, |inst| {
-        if out.is_null() {
-            return inst.error("fmi2Get*Status: value is NULL");
-        }
-        status_value(inst, kind, read, |v| out.write(v))
-    })
+    // SAFETY: the caller keeps this function's contract (its `# Safety` section).
+    unsafe {
+        with_instance::<M>(c, Call::GetStatus, |inst| {
+            if out.is_null() {
+                return inst.error("fmi2Get*Status: value is NULL");
+            }
+            status_value(inst, kind, read, |v| out.write(v))
+        })
+    }
 }
 
 /// The body of `fmi2Get*Status`: `read` gives the value of `kind`, `write` delivers it;

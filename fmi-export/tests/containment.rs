@@ -69,7 +69,10 @@ unsafe extern "C" fn logger(
 ) {
     LOG.lock().unwrap().push((
         status,
-        CStr::from_ptr(message).to_string_lossy().into_owned(),
+        // SAFETY: the FMU passes a NUL-terminated message that lives for the call.
+        unsafe { CStr::from_ptr(message) }
+            .to_string_lossy()
+            .into_owned(),
     ));
 }
 
@@ -82,6 +85,8 @@ fn panics_are_contained_and_errors_escalate() {
     let guid = fmi_export::describe::<Fragile>(&Config::default(), None)
         .unwrap()
         .guid;
+    // SAFETY: the logger's C-variadic signature is called with no variadic arguments by these
+    // FMUs, so the non-variadic function reads what it is given.
     let callbacks = unsafe {
         fmi2CallbackFunctions {
             logger: Some(std::mem::transmute::<
@@ -112,6 +117,8 @@ fn panics_are_contained_and_errors_escalate() {
         CString::new(guid).unwrap(),
         CString::new(dir.display().to_string()).unwrap(),
     );
+    // SAFETY: FMI calls on an instance this block creates and frees, with C strings alive
+    // across the calls.
     unsafe {
         use fmi2::*;
         let c = fmi2Instantiate(

@@ -86,8 +86,11 @@ unsafe extern "C" fn capture(
     category: fmi2String,
     message: fmi2String,
 ) {
-    let text = |p: fmi2String| CStr::from_ptr(p).to_string_lossy().into_owned();
-    let records = &*(env as *const Records);
+    // SAFETY: the FMU passes NUL-terminated strings that live for the call.
+    let text = |p: fmi2String| unsafe { CStr::from_ptr(p) }.to_string_lossy().into_owned();
+    // SAFETY: `env` is the `Records` this test registered as the component environment, alive
+    // while the instance is.
+    let records = unsafe { &*(env as *const Records) };
     records.lock().unwrap().push(LogRecord {
         instance: text(instance),
         status,
@@ -283,6 +286,8 @@ fn through_c(ops: &[Op], records: &Records) -> Vec<Outcome> {
         CString::new(format!("file://{}", res.0.display())).unwrap(),
     );
     let mut out = Vec::new();
+    // SAFETY: FMI calls on an instance this block creates and frees, with C strings and output
+    // buffers that outlive each call.
     unsafe {
         let c: fmi2Component = fmi2Instantiate(
             name.as_ptr(),
@@ -515,6 +520,7 @@ fn failed_instantiations_log_what_the_c_function_logs() {
         let cstr = |s: &str| CString::new(s).unwrap();
         let (n, g, l) = (cstr(name), g.map(cstr), loc.map(cstr));
         let ptr = |s: &Option<CString>| s.as_ref().map_or(std::ptr::null(), |s| s.as_ptr());
+        // SAFETY: C strings and callbacks alive across the call (NULL where the case says so).
         let c = unsafe { fmi2::fmi2Instantiate(n.as_ptr(), *ty, ptr(&g), ptr(&l), &cb, 0, 0) };
         assert!(c.is_null(), "{needle}");
         assert_eq!(records.into_inner().unwrap(), log, "{needle}");

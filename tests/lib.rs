@@ -228,7 +228,7 @@ pub mod foreign {
                 let out = Command::new(&compiler)
                     .args(["-shared", "-fPIC", "-O2", "-std=c99"])
                     .args(["-Wall", "-Wextra", "-Werror", "-I"])
-                    .arg(super::root().join("cosim").join("c"))
+                    .arg(super::root().join("fmi2").join("include"))
                     .arg(src.join(format!("{stem}.c")))
                     .arg(src.join("skeleton.c"))
                     .arg("-o")

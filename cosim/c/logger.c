@@ -14,6 +14,11 @@ void dvpp_cosim_logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2St
 /* Checked by the compiler: the logger has exactly the type fmi2CallbackFunctions expects. */
 const fmi2CallbackLogger dvpp_cosim_logger_type_check = dvpp_cosim_logger;
 
+/* The header has the layout of the Rust definitions (the fmi2 crate asserts the same sizes). */
+_Static_assert(sizeof(fmi2CallbackFunctions) == 5 * sizeof(void *), "fmi2CallbackFunctions: five pointers");
+_Static_assert(sizeof(fmi2Status) == sizeof(int), "fmi2Status: a C int");
+_Static_assert(sizeof(fmi2ValueReference) == 4, "fmi2ValueReference: 32 bits");
+
 void dvpp_cosim_logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,
                        fmi2String message, ...) {
     va_list args, again;

@@ -3,7 +3,6 @@
 //! ([`Library`]) and are instantiated from it many times, each with its own unpacked resources.
 
 use crate::archive::unpack;
-use crate::dl::dl_api;
 use model_description::ModelDescription;
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::fmt;
@@ -11,34 +10,9 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, OnceLock, Weak};
 
-/// `fmi2Status` as returned by an FMU.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Status {
-    Ok,
-    Warning,
-    Discard,
-    Error,
-    Fatal,
-    Pending,
-}
-
-impl Status {
-    fn from_c(s: c_int) -> Status {
-        match s {
-            0 => Status::Ok,
-            1 => Status::Warning,
-            2 => Status::Discard,
-            3 => Status::Error,
-            5 => Status::Pending,
-            _ => Status::Fatal,
-        }
-    }
-}
-
-type Component = *mut c_void;
-type FmuState = *mut c_void;
-type Logger =
-    unsafe extern "C" fn(*mut c_void, *const c_char, c_int, *const c_char, *const c_char, ...);
+pub use fmi2::Status;
+use fmi2::{fmi2CallbackFunctions as CallbackFunctions, fmi2Component as Component};
+use fmi2::{fmi2FMUstate as FmuState, Functions as Api};
 
 extern "C" {
     /// The logger handed to FMUs (c/logger.c): formats the printf-style message with its
@@ -51,54 +25,6 @@ extern "C" {
         message: *const c_char,
         ...
     );
-}
-
-#[repr(C)]
-struct CallbackFunctions {
-    logger: Option<Logger>,
-    allocate: Option<unsafe extern "C" fn(usize, usize) -> *mut c_void>,
-    free: Option<unsafe extern "C" fn(*mut c_void)>,
-    step_finished: Option<unsafe extern "C" fn(*mut c_void, c_int)>,
-    environment: *mut c_void,
-}
-
-dl_api! {
-    /// The 34 FMI 2.0 Co-Simulation functions of one binary.
-    "the binary does not export {}";
-    get_types_platform: "fmi2GetTypesPlatform" => fn() -> *const c_char;
-    get_version: "fmi2GetVersion" => fn() -> *const c_char;
-    set_debug_logging: "fmi2SetDebugLogging" => fn(Component, c_int, usize, *const *const c_char) -> c_int;
-    instantiate: "fmi2Instantiate" => fn(*const c_char, c_int, *const c_char, *const c_char, *const CallbackFunctions, c_int, c_int) -> Component;
-    free_instance: "fmi2FreeInstance" => fn(Component);
-    setup_experiment: "fmi2SetupExperiment" => fn(Component, c_int, f64, f64, c_int, f64) -> c_int;
-    enter_initialization_mode: "fmi2EnterInitializationMode" => fn(Component) -> c_int;
-    exit_initialization_mode: "fmi2ExitInitializationMode" => fn(Component) -> c_int;
-    terminate: "fmi2Terminate" => fn(Component) -> c_int;
-    reset: "fmi2Reset" => fn(Component) -> c_int;
-    get_real: "fmi2GetReal" => fn(Component, *const u32, usize, *mut f64) -> c_int;
-    get_integer: "fmi2GetInteger" => fn(Component, *const u32, usize, *mut c_int) -> c_int;
-    get_boolean: "fmi2GetBoolean" => fn(Component, *const u32, usize, *mut c_int) -> c_int;
-    get_string: "fmi2GetString" => fn(Component, *const u32, usize, *mut *const c_char) -> c_int;
-    set_real: "fmi2SetReal" => fn(Component, *const u32, usize, *const f64) -> c_int;
-    set_integer: "fmi2SetInteger" => fn(Component, *const u32, usize, *const c_int) -> c_int;
-    set_boolean: "fmi2SetBoolean" => fn(Component, *const u32, usize, *const c_int) -> c_int;
-    set_string: "fmi2SetString" => fn(Component, *const u32, usize, *const *const c_char) -> c_int;
-    get_fmu_state: "fmi2GetFMUstate" => fn(Component, *mut FmuState) -> c_int;
-    set_fmu_state: "fmi2SetFMUstate" => fn(Component, FmuState) -> c_int;
-    free_fmu_state: "fmi2FreeFMUstate" => fn(Component, *mut FmuState) -> c_int;
-    serialized_fmu_state_size: "fmi2SerializedFMUstateSize" => fn(Component, FmuState, *mut usize) -> c_int;
-    serialize_fmu_state: "fmi2SerializeFMUstate" => fn(Component, FmuState, *mut c_char, usize) -> c_int;
-    deserialize_fmu_state: "fmi2DeSerializeFMUstate" => fn(Component, *const c_char, usize, *mut FmuState) -> c_int;
-    get_directional_derivative: "fmi2GetDirectionalDerivative" => fn(Component, *const u32, usize, *const u32, usize, *const f64, *mut f64) -> c_int;
-    set_real_input_derivatives: "fmi2SetRealInputDerivatives" => fn(Component, *const u32, usize, *const c_int, *const f64) -> c_int;
-    get_real_output_derivatives: "fmi2GetRealOutputDerivatives" => fn(Component, *const u32, usize, *const c_int, *mut f64) -> c_int;
-    do_step: "fmi2DoStep" => fn(Component, f64, f64, c_int) -> c_int;
-    cancel_step: "fmi2CancelStep" => fn(Component) -> c_int;
-    get_status: "fmi2GetStatus" => fn(Component, c_int, *mut c_int) -> c_int;
-    get_real_status: "fmi2GetRealStatus" => fn(Component, c_int, *mut f64) -> c_int;
-    get_integer_status: "fmi2GetIntegerStatus" => fn(Component, c_int, *mut c_int) -> c_int;
-    get_boolean_status: "fmi2GetBooleanStatus" => fn(Component, c_int, *mut c_int) -> c_int;
-    get_string_status: "fmi2GetStringStatus" => fn(Component, c_int, *mut *const c_char) -> c_int;
 }
 
 /// Names of the functions every FMI 2.0 Co-Simulation binary must export.
@@ -162,7 +88,11 @@ impl Library {
                     .into_owned();
                 return err(format!("cannot load {}: {why}", path.display()));
             }
-            match Api::resolve(handle) {
+            // The symbols of an FMI 2.0 binary have the ABI's types (what loading an FMU
+            // assumes); they live until the handle is closed in Drop.
+            let api = Api::resolve(|name| libc::dlsym(handle, name.as_ptr()))
+                .map_err(|missing| format!("the binary does not export {missing}"));
+            match api {
                 Ok(api) => Ok(Library {
                     model_identifier: model_identifier.to_owned(),
                     api,
@@ -489,10 +419,10 @@ impl Fmu {
         let sink_ptr = Box::into_raw(sink);
         let callbacks = Box::new(CallbackFunctions {
             logger: Some(dvpp_cosim_logger),
-            allocate: Some(alloc_callback),
-            free: Some(free_callback),
+            allocate_memory: Some(alloc_callback),
+            free_memory: Some(free_callback),
             step_finished: None,
-            environment: sink_ptr as *mut c_void,
+            component_environment: sink_ptr as *mut c_void,
         });
         let (c_name, c_guid, c_res) = (cstring(name)?, cstring(guid)?, cstring(resources)?);
         // SAFETY: valid C strings and a callbacks struct that lives as long as the instance.

@@ -739,8 +739,8 @@ pub fn status_value<M: Model, V>(
 }
 
 /// `fmi2GetStatus`: only `fmi2DoStepStatus` (a step always completes synchronously).
-pub fn read_do_step_status<M: Model>(_: &Instance<M>, kind: fmi2StatusKind) -> Option<Status> {
-    (kind == FMI2_DO_STEP_STATUS).then_some(Status::Ok)
+pub fn read_do_step_status<M: Model>(_: &Instance<M>, kind: fmi2StatusKind) -> Option<fmi2Status> {
+    (kind == FMI2_DO_STEP_STATUS).then_some(Status::Ok.into())
 }
 
 /// `fmi2GetRealStatus`: only `fmi2LastSuccessfulTime`.

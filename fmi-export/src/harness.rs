@@ -307,7 +307,8 @@ impl<M: Model> Harness<M> {
 
     /// `fmi2GetStatus`.
     pub fn get_status(&mut self, kind: fmi2StatusKind) -> (Status, Option<Status>) {
-        self.status_of(kind, api::read_do_step_status)
+        let (status, v) = self.status_of(kind, api::read_do_step_status);
+        (status, v.map(Status::from_c))
     }
 
     /// `fmi2GetRealStatus`.

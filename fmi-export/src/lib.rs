@@ -7,12 +7,14 @@
 
 pub mod api;
 pub mod describe;
-pub mod ffi;
 pub mod harness;
 pub mod instance;
 pub mod log;
 pub mod model;
 pub mod uri;
+
+/// The FMI 2.0 C ABI the exported functions have (the [`fmi2`] crate, shared with the master).
+pub use fmi2 as ffi;
 
 pub use describe::{assert_golden, describe, describe_main, Config, Experiment, CONFIG_FILE};
 pub use ffi::Status;
@@ -33,7 +35,7 @@ macro_rules! export_fmu {
             use $crate::ffi::*;
             use $crate::instance::Call;
             use $crate::model_description::BaseType;
-            use $crate::{Status, Value};
+            use $crate::Value;
             type M = $model;
 
             #[no_mangle]
@@ -50,8 +52,8 @@ macro_rules! export_fmu {
                 on: fmi2Boolean,
                 n: usize,
                 cats: *const fmi2String,
-            ) -> Status {
-                api::set_debug_logging::<M>(c, on, n, cats)
+            ) -> fmi2Status {
+                api::set_debug_logging::<M>(c, on, n, cats).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2Instantiate(
@@ -77,24 +79,24 @@ macro_rules! export_fmu {
                 start: f64,
                 stop_defined: fmi2Boolean,
                 stop: f64,
-            ) -> Status {
-                api::setup_experiment::<M>(c, tol_defined, tol, start, stop_defined, stop)
+            ) -> fmi2Status {
+                api::setup_experiment::<M>(c, tol_defined, tol, start, stop_defined, stop).into()
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> Status {
-                api::transition::<M>(c, Call::EnterInitializationMode)
+            pub unsafe extern "C" fn fmi2EnterInitializationMode(c: fmi2Component) -> fmi2Status {
+                api::transition::<M>(c, Call::EnterInitializationMode).into()
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> Status {
-                api::transition::<M>(c, Call::ExitInitializationMode)
+            pub unsafe extern "C" fn fmi2ExitInitializationMode(c: fmi2Component) -> fmi2Status {
+                api::transition::<M>(c, Call::ExitInitializationMode).into()
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> Status {
-                api::transition::<M>(c, Call::Terminate)
+            pub unsafe extern "C" fn fmi2Terminate(c: fmi2Component) -> fmi2Status {
+                api::transition::<M>(c, Call::Terminate).into()
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> Status {
-                api::transition::<M>(c, Call::Reset)
+            pub unsafe extern "C" fn fmi2Reset(c: fmi2Component) -> fmi2Status {
+                api::transition::<M>(c, Call::Reset).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetReal(
@@ -102,8 +104,8 @@ macro_rules! export_fmu {
                 vr: *const u32,
                 n: usize,
                 v: *mut f64,
-            ) -> Status {
-                api::get::<M, f64>(c, BaseType::Real, vr, n, v, api::read_real)
+            ) -> fmi2Status {
+                api::get::<M, f64>(c, BaseType::Real, vr, n, v, api::read_real).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetInteger(
@@ -111,8 +113,8 @@ macro_rules! export_fmu {
                 vr: *const u32,
                 n: usize,
                 v: *mut fmi2Integer,
-            ) -> Status {
-                api::get::<M, fmi2Integer>(c, BaseType::Integer, vr, n, v, api::read_integer)
+            ) -> fmi2Status {
+                api::get::<M, fmi2Integer>(c, BaseType::Integer, vr, n, v, api::read_integer).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetBoolean(
@@ -120,8 +122,8 @@ macro_rules! export_fmu {
                 vr: *const u32,
                 n: usize,
                 v: *mut fmi2Boolean,
-            ) -> Status {
-                api::get::<M, fmi2Boolean>(c, BaseType::Boolean, vr, n, v, api::read_boolean)
+            ) -> fmi2Status {
+                api::get::<M, fmi2Boolean>(c, BaseType::Boolean, vr, n, v, api::read_boolean).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetString(
@@ -129,8 +131,9 @@ macro_rules! export_fmu {
                 vr: *const u32,
                 n: usize,
                 v: *mut fmi2String,
-            ) -> Status {
+            ) -> fmi2Status {
                 api::get::<M, fmi2String>(c, BaseType::String, vr, n, v, api::string_out::<M>)
+                    .into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetReal(
@@ -138,8 +141,8 @@ macro_rules! export_fmu {
                 vr: *const u32,
                 n: usize,
                 v: *const f64,
-            ) -> Status {
-                api::set::<M, f64>(c, BaseType::Real, vr, n, v, |x| Some(Value::Real(x)))
+            ) -> fmi2Status {
+                api::set::<M, f64>(c, BaseType::Real, vr, n, v, |x| Some(Value::Real(x))).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetInteger(
@@ -147,10 +150,11 @@ macro_rules! export_fmu {
                 vr: *const u32,
                 n: usize,
                 v: *const fmi2Integer,
-            ) -> Status {
+            ) -> fmi2Status {
                 api::set::<M, fmi2Integer>(c, BaseType::Integer, vr, n, v, |x| {
                     Some(Value::Integer(x))
                 })
+                .into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetBoolean(
@@ -158,10 +162,11 @@ macro_rules! export_fmu {
                 vr: *const u32,
                 n: usize,
                 v: *const fmi2Boolean,
-            ) -> Status {
+            ) -> fmi2Status {
                 api::set::<M, fmi2Boolean>(c, BaseType::Boolean, vr, n, v, |x| {
                     Some(Value::Boolean(x != 0))
                 })
+                .into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetString(
@@ -169,34 +174,38 @@ macro_rules! export_fmu {
                 vr: *const u32,
                 n: usize,
                 v: *const fmi2String,
-            ) -> Status {
+            ) -> fmi2Status {
                 api::set::<M, fmi2String>(c, BaseType::String, vr, n, v, |x| api::string_in(x))
+                    .into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetFMUstate(
                 c: fmi2Component,
                 s: *mut fmi2FMUstate,
-            ) -> Status {
-                api::get_fmu_state::<M>(c, s)
+            ) -> fmi2Status {
+                api::get_fmu_state::<M>(c, s).into()
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2SetFMUstate(c: fmi2Component, s: fmi2FMUstate) -> Status {
-                api::set_fmu_state::<M>(c, s)
+            pub unsafe extern "C" fn fmi2SetFMUstate(
+                c: fmi2Component,
+                s: fmi2FMUstate,
+            ) -> fmi2Status {
+                api::set_fmu_state::<M>(c, s).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2FreeFMUstate(
                 c: fmi2Component,
                 s: *mut fmi2FMUstate,
-            ) -> Status {
-                api::free_fmu_state::<M>(c, s)
+            ) -> fmi2Status {
+                api::free_fmu_state::<M>(c, s).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SerializedFMUstateSize(
                 c: fmi2Component,
                 s: fmi2FMUstate,
                 size: *mut usize,
-            ) -> Status {
-                api::serialized_size::<M>(c, s, size)
+            ) -> fmi2Status {
+                api::serialized_size::<M>(c, s, size).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SerializeFMUstate(
@@ -204,8 +213,8 @@ macro_rules! export_fmu {
                 s: fmi2FMUstate,
                 out: *mut fmi2Byte,
                 size: usize,
-            ) -> Status {
-                api::serialize::<M>(c, s, out, size)
+            ) -> fmi2Status {
+                api::serialize::<M>(c, s, out, size).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2DeSerializeFMUstate(
@@ -213,8 +222,8 @@ macro_rules! export_fmu {
                 bytes: *const fmi2Byte,
                 size: usize,
                 s: *mut fmi2FMUstate,
-            ) -> Status {
-                api::deserialize::<M>(c, bytes, size, s)
+            ) -> fmi2Status {
+                api::deserialize::<M>(c, bytes, size, s).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetDirectionalDerivative(
@@ -225,8 +234,8 @@ macro_rules! export_fmu {
                 _nk: usize,
                 _dk: *const f64,
                 _du: *mut f64,
-            ) -> Status {
-                api::unsupported::<M>(c, Call::GetDirectionalDerivative)
+            ) -> fmi2Status {
+                api::unsupported::<M>(c, Call::GetDirectionalDerivative).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2SetRealInputDerivatives(
@@ -235,8 +244,8 @@ macro_rules! export_fmu {
                 _n: usize,
                 _o: *const fmi2Integer,
                 _v: *const f64,
-            ) -> Status {
-                api::unsupported::<M>(c, Call::SetRealInputDerivatives)
+            ) -> fmi2Status {
+                api::unsupported::<M>(c, Call::SetRealInputDerivatives).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetRealOutputDerivatives(
@@ -245,8 +254,8 @@ macro_rules! export_fmu {
                 _n: usize,
                 _o: *const fmi2Integer,
                 _v: *mut f64,
-            ) -> Status {
-                api::unsupported::<M>(c, Call::GetRealOutputDerivatives)
+            ) -> fmi2Status {
+                api::unsupported::<M>(c, Call::GetRealOutputDerivatives).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2DoStep(
@@ -254,53 +263,89 @@ macro_rules! export_fmu {
                 t: f64,
                 h: f64,
                 _no_prior: fmi2Boolean,
-            ) -> Status {
-                api::do_step::<M>(c, t, h)
+            ) -> fmi2Status {
+                api::do_step::<M>(c, t, h).into()
             }
             #[no_mangle]
-            pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> Status {
-                api::unsupported::<M>(c, Call::CancelStep)
+            pub unsafe extern "C" fn fmi2CancelStep(c: fmi2Component) -> fmi2Status {
+                api::unsupported::<M>(c, Call::CancelStep).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetStatus(
                 c: fmi2Component,
                 k: fmi2StatusKind,
-                v: *mut Status,
-            ) -> Status {
-                api::get_status::<M, Status>(c, k, v, api::read_do_step_status)
+                v: *mut fmi2Status,
+            ) -> fmi2Status {
+                api::get_status::<M, fmi2Status>(c, k, v, api::read_do_step_status).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetRealStatus(
                 c: fmi2Component,
                 k: fmi2StatusKind,
                 v: *mut f64,
-            ) -> Status {
-                api::get_status::<M, f64>(c, k, v, api::read_real_status)
+            ) -> fmi2Status {
+                api::get_status::<M, f64>(c, k, v, api::read_real_status).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetIntegerStatus(
                 c: fmi2Component,
                 k: fmi2StatusKind,
                 v: *mut fmi2Integer,
-            ) -> Status {
-                api::get_status::<M, fmi2Integer>(c, k, v, api::read_no_status)
+            ) -> fmi2Status {
+                api::get_status::<M, fmi2Integer>(c, k, v, api::read_no_status).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetBooleanStatus(
                 c: fmi2Component,
                 k: fmi2StatusKind,
                 v: *mut fmi2Boolean,
-            ) -> Status {
-                api::get_status::<M, fmi2Boolean>(c, k, v, api::read_boolean_status)
+            ) -> fmi2Status {
+                api::get_status::<M, fmi2Boolean>(c, k, v, api::read_boolean_status).into()
             }
             #[no_mangle]
             pub unsafe extern "C" fn fmi2GetStringStatus(
                 c: fmi2Component,
                 k: fmi2StatusKind,
                 v: *mut fmi2String,
-            ) -> Status {
-                api::get_status::<M, fmi2String>(c, k, v, api::read_no_status)
+            ) -> fmi2Status {
+                api::get_status::<M, fmi2String>(c, k, v, api::read_no_status).into()
             }
+
+            // Each export has exactly the type the ABI gives it (the importer calls through it).
+            const _: fmi2GetTypesPlatformTYPE = fmi2GetTypesPlatform;
+            const _: fmi2GetVersionTYPE = fmi2GetVersion;
+            const _: fmi2SetDebugLoggingTYPE = fmi2SetDebugLogging;
+            const _: fmi2InstantiateTYPE = fmi2Instantiate;
+            const _: fmi2FreeInstanceTYPE = fmi2FreeInstance;
+            const _: fmi2SetupExperimentTYPE = fmi2SetupExperiment;
+            const _: fmi2EnterInitializationModeTYPE = fmi2EnterInitializationMode;
+            const _: fmi2ExitInitializationModeTYPE = fmi2ExitInitializationMode;
+            const _: fmi2TerminateTYPE = fmi2Terminate;
+            const _: fmi2ResetTYPE = fmi2Reset;
+            const _: fmi2GetRealTYPE = fmi2GetReal;
+            const _: fmi2GetIntegerTYPE = fmi2GetInteger;
+            const _: fmi2GetBooleanTYPE = fmi2GetBoolean;
+            const _: fmi2GetStringTYPE = fmi2GetString;
+            const _: fmi2SetRealTYPE = fmi2SetReal;
+            const _: fmi2SetIntegerTYPE = fmi2SetInteger;
+            const _: fmi2SetBooleanTYPE = fmi2SetBoolean;
+            const _: fmi2SetStringTYPE = fmi2SetString;
+            const _: fmi2GetFMUstateTYPE = fmi2GetFMUstate;
+            const _: fmi2SetFMUstateTYPE = fmi2SetFMUstate;
+            const _: fmi2FreeFMUstateTYPE = fmi2FreeFMUstate;
+            const _: fmi2SerializedFMUstateSizeTYPE = fmi2SerializedFMUstateSize;
+            const _: fmi2SerializeFMUstateTYPE = fmi2SerializeFMUstate;
+            const _: fmi2DeSerializeFMUstateTYPE = fmi2DeSerializeFMUstate;
+            const _: fmi2GetDirectionalDerivativeTYPE = fmi2GetDirectionalDerivative;
+            const _: fmi2SetRealInputDerivativesTYPE = fmi2SetRealInputDerivatives;
+            const _: fmi2GetRealOutputDerivativesTYPE = fmi2GetRealOutputDerivatives;
+            const _: fmi2DoStepTYPE = fmi2DoStep;
+            const _: fmi2CancelStepTYPE = fmi2CancelStep;
+            const _: fmi2GetStatusTYPE = fmi2GetStatus;
+            const _: fmi2GetRealStatusTYPE = fmi2GetRealStatus;
+            const _: fmi2GetIntegerStatusTYPE = fmi2GetIntegerStatus;
+            const _: fmi2GetBooleanStatusTYPE = fmi2GetBooleanStatus;
+            const _: fmi2GetStringStatusTYPE = fmi2GetStringStatus;
         }
     };
 }

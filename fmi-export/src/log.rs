@@ -125,7 +125,7 @@ impl Logger {
                     callback(
                         *environment,
                         self.instance_name.as_ptr(),
-                        status,
+                        status.into(),
                         category.as_ptr(),
                         text.as_ptr(),
                     )

@@ -2,7 +2,7 @@
 //! through the master's logger and return fmi2Fatal / fmi2Error; the host process lives on.
 
 use fmi_export::ffi::{
-    fmi2CallbackFunctions, fmi2ComponentEnvironment, fmi2String, FMI2_COSIMULATION,
+    fmi2CallbackFunctions, fmi2ComponentEnvironment, fmi2Status, fmi2String, FMI2_COSIMULATION,
 };
 use fmi_export::{Config, Context, Model, ModelError, Real, Spec, Status, Store, Variables};
 use serde::{Deserialize, Serialize};
@@ -63,12 +63,12 @@ static LOG: Mutex<Vec<(Status, String)>> = Mutex::new(Vec::new());
 unsafe extern "C" fn logger(
     _: fmi2ComponentEnvironment,
     _: fmi2String,
-    status: Status,
+    status: fmi2Status,
     _: fmi2String,
     message: fmi2String,
 ) {
     LOG.lock().unwrap().push((
-        status,
+        Status::from_c(status),
         // SAFETY: the FMU passes a NUL-terminated message that lives for the call.
         unsafe { CStr::from_ptr(message) }
             .to_string_lossy()
@@ -93,14 +93,14 @@ fn panics_are_contained_and_errors_escalate() {
                 unsafe extern "C" fn(
                     fmi2ComponentEnvironment,
                     fmi2String,
-                    Status,
+                    fmi2Status,
                     fmi2String,
                     fmi2String,
                 ),
                 unsafe extern "C" fn(
                     fmi2ComponentEnvironment,
                     fmi2String,
-                    Status,
+                    fmi2Status,
                     fmi2String,
                     fmi2String,
                     ...
@@ -120,7 +120,7 @@ fn panics_are_contained_and_errors_escalate() {
     // SAFETY: FMI calls on an instance this block creates and frees, with C strings alive
     // across the calls.
     unsafe {
-        use fmi2::*;
+        use self::fmi2::*;
         let c = fmi2Instantiate(
             name.as_ptr(),
             FMI2_COSIMULATION,

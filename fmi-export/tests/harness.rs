@@ -2,8 +2,8 @@
 //! the same statuses and values and log the same records, failures of `fmi2Instantiate` included.
 
 use fmi_export::ffi::{
-    fmi2CallbackFunctions, fmi2Component, fmi2ComponentEnvironment, fmi2FMUstate, fmi2String,
-    FMI2_COSIMULATION, FMI2_DO_STEP_STATUS, FMI2_LAST_SUCCESSFUL_TIME,
+    fmi2CallbackFunctions, fmi2Component, fmi2ComponentEnvironment, fmi2FMUstate, fmi2Status,
+    fmi2String, FMI2_COSIMULATION, FMI2_DO_STEP_STATUS, FMI2_LAST_SUCCESSFUL_TIME,
 };
 use fmi_export::harness::Harness;
 use fmi_export::instance::Phase;
@@ -82,7 +82,7 @@ type Records = Mutex<Vec<LogRecord>>;
 unsafe extern "C" fn capture(
     env: fmi2ComponentEnvironment,
     instance: fmi2String,
-    status: Status,
+    status: fmi2Status,
     category: fmi2String,
     message: fmi2String,
 ) {
@@ -93,16 +93,22 @@ unsafe extern "C" fn capture(
     let records = unsafe { &*(env as *const Records) };
     records.lock().unwrap().push(LogRecord {
         instance: text(instance),
-        status,
+        status: Status::from_c(status),
         category: text(category),
         message: text(message),
     });
 }
 
 type Fixed =
-    unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, Status, fmi2String, fmi2String);
-type Variadic =
-    unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, Status, fmi2String, fmi2String, ...);
+    unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String);
+type Variadic = unsafe extern "C" fn(
+    fmi2ComponentEnvironment,
+    fmi2String,
+    fmi2Status,
+    fmi2String,
+    fmi2String,
+    ...
+);
 
 fn callbacks(records: &Records) -> fmi2CallbackFunctions {
     fmi2CallbackFunctions {
@@ -277,7 +283,7 @@ fn sequence() -> Vec<Op> {
 }
 
 fn through_c(ops: &[Op], records: &Records) -> Vec<Outcome> {
-    use fmi2::*;
+    use self::fmi2::*;
     let cb = callbacks(records);
     let res = Resources::new("c", "");
     let (name, guid, loc) = (
@@ -364,7 +370,9 @@ fn through_c(ops: &[Op], records: &Records) -> Vec<Outcome> {
         }
         fmi2FreeInstance(c);
     }
-    out
+    out.into_iter()
+        .map(|(s, v)| (Status::from_c(s), v))
+        .collect()
 }
 
 fn through_harness(ops: &[Op]) -> (Vec<Outcome>, Vec<LogRecord>) {
@@ -521,7 +529,8 @@ fn failed_instantiations_log_what_the_c_function_logs() {
         let (n, g, l) = (cstr(name), g.map(cstr), loc.map(cstr));
         let ptr = |s: &Option<CString>| s.as_ref().map_or(std::ptr::null(), |s| s.as_ptr());
         // SAFETY: C strings and callbacks alive across the call (NULL where the case says so).
-        let c = unsafe { fmi2::fmi2Instantiate(n.as_ptr(), *ty, ptr(&g), ptr(&l), &cb, 0, 0) };
+        let c =
+            unsafe { self::fmi2::fmi2Instantiate(n.as_ptr(), *ty, ptr(&g), ptr(&l), &cb, 0, 0) };
         assert!(c.is_null(), "{needle}");
         assert_eq!(records.into_inner().unwrap(), log, "{needle}");
     }

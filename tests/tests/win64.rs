@@ -79,7 +79,7 @@ fn file_uri(path: &str, form: &str) -> String {
 fn compile(compiler: &str, sources: &[PathBuf], args: &[&str], out: &Path) {
     let output = Command::new(compiler)
         .args(["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I"])
-        .arg(root().join("cosim").join("c"))
+        .arg(root().join("fmi2").join("include"))
         .args(sources)
         .arg("-o")
         .arg(out)

@@ -1,6 +1,7 @@
-/* Minimal FMI 2.0 Co-Simulation C interface (types, callbacks, prototypes): the master's logger and the foreign test FMUs compile against it. */
-#ifndef FOREIGN_FMI2_H
-#define FOREIGN_FMI2_H
+/* The FMI 2.0 Co-Simulation C interface (types, callbacks, prototypes) of the fmi2 crate, for C code: the master's
+ * logger shim and the C test FMUs compile against it; src/lib.rs is the same ABI for Rust. */
+#ifndef DVPP_FMI2_H
+#define DVPP_FMI2_H
 
 #include <stddef.h>
 
@@ -128,4 +129,4 @@ FMI2_EXPORT fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind
 }
 #endif
 
-#endif /* FOREIGN_FMI2_H */
+#endif /* DVPP_FMI2_H */

@@ -20,6 +20,7 @@ pub mod adaptation;
 pub mod adpf;
 pub mod bank;
 pub mod checks;
+pub mod converter;
 pub mod error;
 pub mod local;
 pub mod phasor;

@@ -9,9 +9,17 @@
 //! in the same order with the same values. The schedule of rounds depends on the system only (not
 //! on how components are grouped into federates): every federate computes the same one, and
 //! HELICS time counts rounds (1 s per round, uninterruptible), not simulated time.
+//!
+//! Initialization, the exchange, stepping and sampling are the master's coupling core, run over
+//! this federate's components: the federate hands it its rounds as the plan of each exchange
+//! and is its transport (values between its own components copied, values to and from other
+//! federates published and taken in the rounds). What is left here is HELICS's: the library,
+//! the federate and its interfaces, the rounds and their grants, and the launcher.
 
 use crate::dl::dl_api;
-use crate::master::{checked, CsvWriter, End, Error, Observer, Options, Phase, RunInfo, System};
+use crate::master::{
+    CsvWriter, End, Error, Event, Link, Observer, Options, Phase, Plans, RunInfo, System, Transport,
+};
 use crate::ssp;
 use crate::table::seconds;
 use libc::{c_char, c_int, c_void};
@@ -216,15 +224,6 @@ pub fn find_broker(lib: &Path) -> Result<PathBuf, Error> {
     }
 }
 
-/// One event of an exchange: connection `i` walked whole by its component (both ends in one
-/// unit), read at its source, or set at its destination.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Event {
-    Local(usize),
-    Produce(usize),
-    Consume(usize),
-}
-
 /// An exchange split into rounds: the events of each round in the master's order, and the
 /// connections whose value arrives (is taken from HELICS) at the start of each round.
 #[derive(Debug, Default)]
@@ -241,16 +240,17 @@ struct Schedule {
 impl Schedule {
     /// Mark the rounds a federate of the units `mine` must be granted ([`Schedule::granted`]).
     fn grant_for(&mut self, sys: &System, mine: &[bool]) {
-        let remote = |i: usize| mine[sys.links[i].src] != mine[sys.links[i].dst];
+        let links = sys.core().links();
+        let remote = |i: usize| mine[links[i].src()] != mine[links[i].dst()];
         let last = self.rounds.len() - 1;
         self.granted = (0..self.rounds.len())
             .map(|j| {
                 j == last
                     || self.receive[j]
                         .iter()
-                        .any(|&i| remote(i) && mine[sys.links[i].dst])
+                        .any(|&i| remote(i) && mine[links[i].dst()])
                     || self.rounds[j].iter().any(|e| match *e {
-                        Event::Produce(i) => remote(i) && mine[sys.links[i].src],
+                        Event::Produce(i) => remote(i) && mine[links[i].src()],
                         Event::Local(_) | Event::Consume(_) => false,
                     })
             })
@@ -263,7 +263,7 @@ impl Schedule {
 /// earliest; a source publishes an output once per round (a second read of it after an input
 /// that feeds through was set waits for the next round).
 fn schedule(sys: &System, order: &[usize], phase: Phase) -> Schedule {
-    let n = sys.units.len();
+    let n = sys.units();
     let mut round = vec![0usize; n];
     let mut published: Vec<Option<usize>> = vec![None; n];
     let mut dirty = vec![false; n];
@@ -276,24 +276,24 @@ fn schedule(sys: &System, order: &[usize], phase: Phase) -> Schedule {
         s.rounds[r].push(e);
     };
     for &i in order {
-        let l = &sys.links[i];
-        let feeds = l.feeds[phase as usize];
-        if l.src == l.dst {
-            put(&mut s, round[l.src], Event::Local(i));
+        let l = &sys.core().links()[i];
+        let (src, dst) = (l.src(), l.dst());
+        if src == dst {
+            put(&mut s, round[src], Event::Local(i));
         } else {
-            if published[l.src] == Some(round[l.src]) && dirty[l.src] {
-                round[l.src] += 1;
+            if published[src] == Some(round[src]) && dirty[src] {
+                round[src] += 1;
             }
-            let p = round[l.src];
-            published[l.src] = Some(p);
-            dirty[l.src] = false;
+            let p = round[src];
+            published[src] = Some(p);
+            dirty[src] = false;
             put(&mut s, p, Event::Produce(i));
-            round[l.dst] = round[l.dst].max(p + 1);
-            put(&mut s, round[l.dst], Event::Consume(i));
+            round[dst] = round[dst].max(p + 1);
+            put(&mut s, round[dst], Event::Consume(i));
             s.receive[p + 1].push(i);
         }
-        if feeds {
-            dirty[l.dst] = true;
+        if l.feeds(phase) {
+            dirty[dst] = true;
         }
     }
     if s.rounds.is_empty() {
@@ -351,8 +351,8 @@ struct Pack {
 /// the same for every federate, whatever the grouping.
 fn packed_slots(sys: &System) -> BTreeMap<usize, BTreeMap<usize, usize>> {
     let mut slots: BTreeMap<usize, std::collections::BTreeSet<usize>> = BTreeMap::new();
-    for l in sys.links.iter().filter(|l| l.src != l.dst) {
-        slots.entry(l.src).or_default().insert(l.slot);
+    for l in sys.core().links().iter().filter(|l| l.src() != l.dst()) {
+        slots.entry(l.src()).or_default().insert(l.slot());
     }
     slots
         .into_iter()
@@ -371,9 +371,23 @@ struct Federate<'a> {
     /// The change counts of initialization: own components' publications, others' inputs.
     changed_pub: BTreeMap<usize, Handle>,
     changed_in: BTreeMap<usize, Handle>,
-    /// The HELICS time granted (one per round).
+    /// The HELICS time granted (one per round), and at the start of the current exchange.
     time: f64,
+    base: f64,
     finalized: bool,
+    /// This federate's components.
+    mine: Vec<bool>,
+    /// The source (unit, output slot) and destination unit of each connection.
+    ends: Vec<(usize, usize, usize)>,
+    /// Values read at their source or taken from HELICS, by connection, to be set at their
+    /// destination.
+    buf: Vec<f64>,
+    /// Per [`Phase`]: the connections whose value arrives at the start of each round, and the
+    /// rounds this federate must be granted ([`Schedule`]).
+    receive: [Vec<Vec<usize>>; 2],
+    granted: [Vec<bool>; 2],
+    /// Initialization exchanges so far.
+    init_passes: usize,
 }
 
 impl Federate<'_> {
@@ -485,160 +499,63 @@ impl Drop for Federate<'_> {
     }
 }
 
-/// The local part of a system and its rounds.
-struct Local {
-    system: System,
-    mine: Vec<bool>,
-    /// Values read at their source, by connection (set at their destination later).
-    buf: Vec<f64>,
-    init: Schedule,
-    step: Schedule,
-}
-
-impl Local {
-    /// Read unit `k`'s outputs if stale.
-    fn fresh(&mut self, k: usize) -> Result<(), Error> {
-        let sys = &mut self.system;
-        if !sys.units[k].fresh {
-            sys.units[k].read(&mut sys.warnings)?;
+/// The federate as the coupling core's transport: a value between two of its own components
+/// is copied, one to or from another federate travels in that component's vector.
+impl Transport for Federate<'_> {
+    fn begin_round(&mut self, phase: Phase, round: usize) -> Result<(), Error> {
+        if round == 0 {
+            self.base = self.time;
+            return Ok(());
         }
-        Ok(())
-    }
-
-    /// Set connection `i`'s input to `v` when it changed (as the master's exchange does).
-    fn set(&mut self, i: usize, v: f64, phase: Phase) -> usize {
-        let sys = &mut self.system;
-        let link = &mut sys.links[i];
-        if link.last.map(f64::to_bits) == Some(v.to_bits()) {
-            return 0;
+        // Initialization passes end on a count every federate publishes: all take part.
+        let p = phase as usize;
+        if phase != Phase::Init && !self.granted[p][round] {
+            return Ok(());
         }
-        link.last = Some(v);
-        let (vr, ty, dst) = (link.dst_vr, link.ty, link.dst);
-        let feeds = link.feeds[phase as usize];
-        let unit = &mut sys.units[dst];
-        unit.push(vr, ty, v);
-        if feeds {
-            unit.fresh = false;
-        }
-        1
-    }
-
-    /// One exchange in rounds; returns how many of this federate's inputs changed.
-    fn exchange(&mut self, fed: &mut Federate, phase: Phase) -> Result<usize, Error> {
-        let sched = std::mem::take(match phase {
-            Phase::Init => &mut self.init,
-            Phase::Step => &mut self.step,
-        });
-        let r = self.exchange_in(fed, phase, &sched);
-        *match phase {
-            Phase::Init => &mut self.init,
-            Phase::Step => &mut self.step,
-        } = sched;
-        r
-    }
-
-    fn exchange_in(
-        &mut self,
-        fed: &mut Federate,
-        phase: Phase,
-        sched: &Schedule,
-    ) -> Result<usize, Error> {
-        let mut changed = 0;
-        let base = fed.time;
-        for (j, events) in sched.rounds.iter().enumerate() {
-            // Initialization passes end on a count every federate publishes: all take part.
-            let take_part = phase == Phase::Init || sched.granted[j];
-            if j > 0 && take_part {
-                fed.round(base + j as f64)?;
-                fed.untouch_inputs();
-                for &i in &sched.receive[j] {
-                    let l = &self.system.links[i];
-                    if self.mine[l.dst] && !self.mine[l.src] {
-                        self.buf[i] = fed.take(l.src, l.slot)?;
-                    }
-                }
-            }
-            for &e in events {
-                match e {
-                    Event::Local(i) => {
-                        let (src, slot) = (self.system.links[i].src, self.system.links[i].slot);
-                        if !self.mine[src] {
-                            continue;
-                        }
-                        self.fresh(src)?;
-                        let l = &self.system.links[i];
-                        let v = l.factor * self.system.units[src].values[slot] + l.offset;
-                        changed += self.set(i, v, phase);
-                    }
-                    Event::Produce(i) => {
-                        let l = &self.system.links[i];
-                        let (src, slot, dst) = (l.src, l.slot, l.dst);
-                        if !self.mine[src] {
-                            continue;
-                        }
-                        self.fresh(src)?;
-                        let raw = self.system.units[src].values[slot];
-                        if self.mine[dst] {
-                            self.buf[i] = raw;
-                        } else if let Some(p) = fed.publications.get_mut(&src) {
-                            p.values[p.at[&slot]] = raw;
-                            p.touched = true;
-                        }
-                    }
-                    Event::Consume(i) => {
-                        let l = &self.system.links[i];
-                        if !self.mine[l.dst] {
-                            continue;
-                        }
-                        let v = l.factor * self.buf[i] + l.offset;
-                        changed += self.set(i, v, phase);
-                    }
-                }
-            }
-            fed.publish_packs()?;
-        }
-        let sys = &mut self.system;
-        for (k, u) in sys.units.iter_mut().enumerate() {
-            if self.mine[k] {
-                u.flush(&mut sys.warnings)?;
-            }
-        }
-        Ok(changed)
-    }
-
-    /// The master's `sample`, over this federate's units.
-    fn sample(&mut self, t: i64, row: &mut Vec<f64>) -> Result<(), Error> {
-        row.clear();
-        row.push(seconds(t));
-        for k in 0..self.system.units.len() {
-            if self.mine[k] {
-                self.fresh(k)?;
-                row.extend_from_slice(&self.system.units[k].values);
+        self.round(self.base + round as f64)?;
+        self.untouch_inputs();
+        for k in 0..self.receive[p][round].len() {
+            let i = self.receive[p][round][k];
+            let (src, slot, dst) = self.ends[i];
+            if self.mine[dst] && !self.mine[src] {
+                self.buf[i] = self.take(src, slot)?;
             }
         }
         Ok(())
     }
 
-    /// The master's one-thread `step_all` over this federate's units.
-    fn step(&mut self, t: i64, h: i64) -> Result<(), Error> {
-        let (ts, hs) = (seconds(t), seconds(h));
-        let sys = &mut self.system;
-        for (k, u) in sys.units.iter_mut().enumerate() {
-            if !self.mine[k] {
-                continue;
-            }
-            u.stepped = u.inst.do_step(ts, hs);
-            u.fresh = false;
-            let idle = u.pending_real.0.is_empty() && u.pending_other.is_empty();
-            if u.stepped <= crate::Status::Warning && idle {
-                u.fetched = Some(u.fetch());
-            }
+    fn carry(&mut self, i: usize, link: &Link, raw: f64) {
+        if self.mine[link.dst()] {
+            self.buf[i] = raw;
+        } else if let Some(p) = self.publications.get_mut(&link.src()) {
+            p.values[p.at[&link.slot()]] = raw;
+            p.touched = true;
         }
-        let result = checked(&mut sys.units, &mut sys.warnings, ts, hs);
-        for u in &mut sys.units {
-            u.fetched = None;
+    }
+
+    fn deliver(&mut self, i: usize, _: &Link) -> Result<f64, Error> {
+        Ok(self.buf[i])
+    }
+
+    fn end_round(&mut self) -> Result<(), Error> {
+        self.publish_packs()
+    }
+
+    /// Every federate's count: own components' published (the count on the first), the
+    /// others' read one round later.
+    fn settled(&mut self, changed: usize) -> Result<bool, Error> {
+        let mut first = true;
+        for p in self.changed_pub.values() {
+            self.publish(*p, if first { changed as f64 } else { 0.0 })?;
+            first = false;
         }
-        result
+        self.next_round()?;
+        let mut total = changed as f64;
+        for i in self.changed_in.values() {
+            total += self.get(*i)?;
+        }
+        self.init_passes += 1;
+        Ok(total == 0.0)
     }
 }
 
@@ -649,7 +566,7 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     let helics = Helics::open(&lib_path)?;
     let started = Instant::now();
     let package = ssp::read(&o.system)?;
-    let system = System::load(&package)?;
+    let mut system = System::load(&package)?;
     let names = component_names(&package);
     let mut mine = vec![false; names.len()];
     for c in &o.components {
@@ -667,28 +584,26 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     if !mine.iter().any(|&m| m) {
         return err("--component: no component given");
     }
+    system.core_mut().set_local(&mine);
     let name = o.name.clone().unwrap_or_else(|| o.components.join("+"));
-    let mut init = schedule(&system, &system.init_order, Phase::Init);
-    let mut step = schedule(&system, &system.step_order, Phase::Step);
+    let mut init = schedule(&system, system.order(Phase::Init), Phase::Init);
+    let mut step = schedule(&system, system.order(Phase::Step), Phase::Step);
     init.grant_for(&system, &mine);
     step.grant_for(&system, &mine);
+    let links = system.core().links();
     if std::env::var_os("COSIM_SCHEDULE").is_some() {
         for (j, r) in step.rounds.iter().enumerate() {
             for e in r {
                 let (Event::Local(i) | Event::Produce(i) | Event::Consume(i)) = *e;
-                eprintln!("round {j}: {e:?} {}", system.links[i].label);
+                eprintln!("round {j}: {e:?} {}", links[i].label());
             }
         }
     }
-    let mut local = Local {
-        buf: vec![0.0; system.links.len()],
-        system,
-        mine,
-        init,
-        step,
-    };
-    let (start, stop, h) = local.system.experiment(&o.opts)?;
+    let ends = links.iter().map(|l| (l.src(), l.slot(), l.dst())).collect();
+    let (start, stop, h) = system.experiment(&o.opts)?;
     let load_time = started.elapsed();
+    let init_rounds = init.rounds.len();
+    let step_rounds = step.granted[1..].iter().filter(|&&g| g).count().max(1);
 
     // The federate and its interfaces.
     let core = o.core.as_deref().unwrap_or(DEFAULT_CORE);
@@ -701,21 +616,25 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
         changed_pub: BTreeMap::new(),
         changed_in: BTreeMap::new(),
         time: 0.0,
+        base: 0.0,
         finalized: false,
+        buf: vec![0.0; system.core().links().len()],
+        mine,
+        ends,
+        receive: [init.receive, step.receive],
+        granted: [init.granted, step.granted],
+        init_passes: 0,
     };
+    let plans: Plans = [init.rounds, step.rounds];
     // One vector per component that another component reads (see [`Pack`]).
-    for (u, at) in packed_slots(&local.system) {
-        let name = cstring(&local.system.units[u].name)?;
-        let reads_it = |l: &crate::master::Link| l.src == u && local.mine[l.dst];
-        let mine = local.mine[u];
+    for (u, at) in packed_slots(&system) {
+        let name = cstring(system.core().units()[u].name())?;
+        let links = system.core().links();
+        let mine = fed.mine[u];
         let wanted = if mine {
-            local
-                .system
-                .links
-                .iter()
-                .any(|l| l.src == u && !local.mine[l.dst])
+            links.iter().any(|l| l.src() == u && !fed.mine[l.dst()])
         } else {
-            local.system.links.iter().any(reads_it)
+            links.iter().any(|l| l.src() == u && fed.mine[l.dst()])
         };
         if !wanted {
             continue;
@@ -751,7 +670,7 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     }
     for (k, n) in names.iter().enumerate() {
         let k_name = cstring(&format!("_cosim.changed.{n}"))?;
-        if local.mine[k] {
+        if fed.mine[k] {
             // SAFETY: as above.
             let p = helics.call("register publication", |e| unsafe {
                 (helics.api.register_global_publication)(
@@ -783,29 +702,27 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     let mut report = FederateReport {
         name: name.clone(),
         steps: 0,
-        init_rounds: local.init.rounds.len(),
-        step_rounds: local.step.granted[1..]
-            .iter()
-            .filter(|&&g| g)
-            .count()
-            .max(1),
+        init_rounds,
+        step_rounds,
         init_passes: 0,
         run_time: Duration::ZERO,
         load_time,
         warnings: Vec::new(),
     };
     let result = drive(
-        &mut local,
+        &mut system,
+        &plans,
         &mut fed,
         &mut csv,
         (start, stop, h),
         &mut report,
     );
+    report.init_passes = fed.init_passes;
     let end = match &result {
         Ok(()) => End::Completed,
         Err(e) => End::Failed {
             at: seconds(start),
-            error: e.0.clone(),
+            error: e.to_string(),
         },
     };
     if let Some(c) = csv.as_mut() {
@@ -814,7 +731,7 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     report.run_time = run_started.elapsed();
     result?;
     fed.finalize()?;
-    report.warnings = std::mem::take(&mut local.system.warnings);
+    report.warnings = system.core_mut().take_warnings();
     Ok(report)
 }
 
@@ -868,29 +785,20 @@ fn create_federate(h: &Helics, name: &str, core: &str, broker: &str) -> Result<H
     result
 }
 
-/// Initialize, exchange and step as the Jacobi master does, over this federate's units.
+/// Initialize, exchange and step as the Jacobi master does, over this federate's units: the
+/// coupling core's calls, with the federate as its transport and its rounds as the plans.
 fn drive(
-    local: &mut Local,
+    system: &mut System,
+    plans: &Plans,
     fed: &mut Federate,
     csv: &mut Option<CsvWriter>,
     (start, stop, step): (i64, i64, i64),
     report: &mut FederateReport,
 ) -> Result<(), Error> {
-    initialize(local, fed, start, stop, report)
+    let core = system.core_mut();
+    core.initialize(start, stop, plans, fed)
         .map_err(|e| Error(format!("during initialization: {e}")))?;
-    let columns: Vec<String> = {
-        let all = local.system.columns();
-        let mut cols = vec![all[0].clone()];
-        let mut at = 1;
-        for (k, u) in local.system.units.iter().enumerate() {
-            let n = u.values.len();
-            if local.mine[k] {
-                cols.extend_from_slice(&all[at..at + n]);
-            }
-            at += n;
-        }
-        cols
-    };
+    let columns = core.columns();
     if let Some(c) = csv.as_mut() {
         c.start(&RunInfo {
             system: &report.name,
@@ -901,12 +809,12 @@ fn drive(
             record: &[],
         })?;
     }
-    let mut row = Vec::with_capacity(columns.len());
+    let step_plan = &plans[Phase::Step as usize];
     let mut t = start;
     loop {
-        local.sample(t, &mut row)?;
+        core.sample(t)?;
         if let Some(c) = csv.as_mut() {
-            c.sample(&row)?;
+            c.sample(core.row())?;
         }
         if t >= stop {
             break;
@@ -919,107 +827,18 @@ fn drive(
                 seconds(t + h)
             ))
         };
-        local.step(t, h).map_err(step_error)?;
+        core.step_all(t, h).map_err(step_error)?;
         // No new round to start the exchange (the last round of an exchange publishes
         // nothing); one at least per step, so that the federates go in step.
-        if local.step.rounds.len() == 1 {
+        if step_plan.len() == 1 {
             fed.next_round().map_err(step_error)?;
         }
-        local.exchange(fed, Phase::Step).map_err(step_error)?;
+        core.exchange(Phase::Step, step_plan, fed)
+            .map_err(step_error)?;
         report.steps += 1;
         t += h;
     }
-    let sys = &mut local.system;
-    for (k, u) in sys.units.iter_mut().enumerate() {
-        if local.mine[k] {
-            let s = u.inst.terminate();
-            u.check(|| "fmi2Terminate".into(), s, &mut sys.warnings)?;
-        }
-    }
-    Ok(())
-}
-
-/// The master's initialization over this federate's units; the passes end when no input of any
-/// federate changed (every federate publishes its count each pass).
-fn initialize(
-    local: &mut Local,
-    fed: &mut Federate,
-    start: i64,
-    stop: i64,
-    report: &mut FederateReport,
-) -> Result<(), Error> {
-    let sys = &mut local.system;
-    for (k, u) in sys.units.iter_mut().enumerate() {
-        if local.mine[k] {
-            let s = u.inst.setup_experiment(seconds(start), Some(seconds(stop)));
-            u.check(|| "fmi2SetupExperiment".into(), s, &mut sys.warnings)?;
-        }
-    }
-    for (k, name, var, value) in &sys.parameters {
-        if !local.mine[*k] {
-            continue;
-        }
-        let u = &mut sys.units[*k];
-        let s = match value {
-            ssp::Value::Real(v) => u.inst.set_real(&[var.vr], &[*v]),
-            ssp::Value::Integer(v) => u.inst.set_integer(&[var.vr], &[*v as i32]),
-            ssp::Value::Boolean(v) => u.inst.set_boolean(&[var.vr], &[*v]),
-            ssp::Value::String(v) => u.inst.set_string(&[var.vr], &[v.as_str()]),
-        };
-        u.check(
-            || format!("setting parameter '{name}'"),
-            s,
-            &mut sys.warnings,
-        )?;
-    }
-    for (k, u) in sys.units.iter_mut().enumerate() {
-        if local.mine[k] {
-            let s = u.inst.enter_initialization_mode();
-            u.check(
-                || "fmi2EnterInitializationMode".into(),
-                s,
-                &mut sys.warnings,
-            )?;
-            u.fresh = false;
-        }
-    }
-    const MAX_PASSES: usize = 100;
-    let mut passes = 0;
-    loop {
-        let mine = local.exchange(fed, Phase::Init)?;
-        // Every federate's count: own components' published (the count on the first), the
-        // others' read one round later.
-        let mut first = true;
-        for p in fed.changed_pub.values() {
-            fed.publish(*p, if first { mine as f64 } else { 0.0 })?;
-            first = false;
-        }
-        fed.next_round()?;
-        let mut total = mine as f64;
-        for i in fed.changed_in.values() {
-            total += fed.get(*i)?;
-        }
-        report.init_passes += 1;
-        if total == 0.0 {
-            break;
-        }
-        passes += 1;
-        if passes == MAX_PASSES {
-            return err(format!(
-                "initialization did not settle after {MAX_PASSES} exchanges (an algebraic loop that does not converge?)"
-            ));
-        }
-    }
-    let sys = &mut local.system;
-    for (k, u) in sys.units.iter_mut().enumerate() {
-        if local.mine[k] {
-            let s = u.inst.exit_initialization_mode();
-            u.check(|| "fmi2ExitInitializationMode".into(), s, &mut sys.warnings)?;
-            u.fresh = false;
-        }
-    }
-    local.exchange(fed, Phase::Step)?;
-    Ok(())
+    core.terminate()
 }
 
 /// A federation on one machine: the system, its federates' components, where the results go.
@@ -1466,11 +1285,11 @@ mod tests {
         assert_eq!(groups(&all, None).unwrap().len(), 5);
         assert!(groups(&all, Some("grid;grid"))
             .unwrap_err()
-            .0
+            .to_string()
             .contains("two groups"));
         assert!(groups(&all, Some("nosuch"))
             .unwrap_err()
-            .0
+            .to_string()
             .contains("'nosuch'"));
     }
 
@@ -1484,6 +1303,6 @@ mod tests {
     #[test]
     fn a_missing_library_is_named() {
         let e = find_library(Some(Path::new("/nonexistent/libhelics.so"))).unwrap_err();
-        assert!(e.0.contains("/nonexistent/libhelics.so"), "{e}");
+        assert!(e.to_string().contains("/nonexistent/libhelics.so"), "{e}");
     }
 }

@@ -733,7 +733,7 @@ mod tests {
         let columns: Vec<String> = ["time", "a.p"].map(String::from).to_vec();
         let mut s = Select::new(crate::master::Recorder::default(), Record::parse("grid.*"));
         let e = s.start(&info(&columns)).unwrap_err();
-        assert!(e.0.contains("'grid.*' matches no output"), "{e}");
+        assert!(e.to_string().contains("'grid.*' matches no output"), "{e}");
         let fraction = Record {
             interval: Some(0.0015),
             ..Record::parse("all")
@@ -741,7 +741,7 @@ mod tests {
         let e = Select::new(crate::master::Recorder::default(), fraction)
             .start(&info(&columns))
             .unwrap_err();
-        assert!(e.0.contains("not a whole multiple"), "{e}");
+        assert!(e.to_string().contains("not a whole multiple"), "{e}");
         assert!(Record::parse("all, *.p").is_all());
         // The system's default set may name what a system lacks.
         let default = ["*.p".to_string(), "operator.*".to_string()];
@@ -817,7 +817,7 @@ mod tests {
         assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
         let columns: Vec<String> = ["time", "a.p"].map(String::from).to_vec();
         let e = MatWriter::new(&fifo).start(&info(&columns)).unwrap_err();
-        assert!(e.0.contains("needs a regular file"), "{e}");
+        assert!(e.to_string().contains("needs a regular file"), "{e}");
     }
 
     #[test]

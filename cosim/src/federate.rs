@@ -29,7 +29,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 fn err<T>(msg: impl Into<String>) -> Result<T, Error> {
-    Err(Error(msg.into()))
+    Err(Error::Federation(msg.into()))
 }
 
 #[repr(C)]
@@ -87,7 +87,7 @@ impl Helics {
     /// dlopen libhelics at `path` and resolve the functions used here.
     pub fn open(path: &Path) -> Result<Helics, Error> {
         let c_path = CString::new(path.to_string_lossy().as_bytes())
-            .map_err(|_| Error(format!("{}: bad path", path.display())))?;
+            .map_err(|_| Error::Federation(format!("{}: bad path", path.display())))?;
         // SAFETY: dlopen/dlsym with valid C strings; every symbol is cast to the signature of
         // helics.h (HELICS 3); the library stays loaded for the process.
         unsafe {
@@ -431,7 +431,7 @@ impl Federate<'_> {
         let p = self
             .inputs
             .get_mut(&src)
-            .ok_or_else(|| Error(format!("no input of component #{src}")))?;
+            .ok_or_else(|| Error::Federation(format!("no input of component #{src}")))?;
         if !p.touched {
             let mut got: c_int = 0;
             let want = p.values.len();
@@ -736,7 +736,7 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
 }
 
 fn cstring(s: &str) -> Result<CString, Error> {
-    CString::new(s).map_err(|_| Error(format!("'{s}': a NUL in a name")))
+    CString::new(s).map_err(|_| Error::Federation(format!("'{s}': a NUL in a name")))
 }
 
 /// A value federate named `name` on a `core` core connecting to `broker`.
@@ -797,7 +797,7 @@ fn drive(
 ) -> Result<(), Error> {
     let core = system.core_mut();
     core.initialize(start, stop, plans, fed)
-        .map_err(|e| Error(format!("during initialization: {e}")))?;
+        .map_err(|e| Error::Initialization(Box::new(e)))?;
     let columns = core.columns();
     if let Some(c) = csv.as_mut() {
         c.start(&RunInfo {
@@ -820,12 +820,11 @@ fn drive(
             break;
         }
         let h = step.min(stop - t);
-        let step_error = |e: Error| {
-            Error(format!(
-                "in the communication step from t = {} s to {} s: {e}",
-                seconds(t),
-                seconds(t + h)
-            ))
+        let step_error = |e: Error| Error::Step {
+            from: seconds(t),
+            to: seconds(t + h),
+            algorithm: None,
+            cause: Box::new(e),
         };
         core.step_all(t, h).map_err(step_error)?;
         // No new round to start the exchange (the last round of an exchange publishes
@@ -932,7 +931,7 @@ fn unquote(f: &str) -> String {
 /// Merge the federates' CSVs (same times) into `out`, columns in `order` (the master's).
 fn merge(parts: &[PathBuf], order: &[String], out: &Path) -> Result<usize, Error> {
     use std::io::{BufRead, BufReader, BufWriter, Write};
-    let io = |p: &Path, e: std::io::Error| Error(format!("{}: {e}", p.display()));
+    let io = |p: &Path, e: std::io::Error| Error::Federation(format!("{}: {e}", p.display()));
     let mut readers = Vec::new();
     // (part, field) of each output column.
     let mut at: BTreeMap<String, (usize, usize)> = BTreeMap::new();
@@ -942,7 +941,7 @@ fn merge(parts: &[PathBuf], order: &[String], out: &Path) -> Result<usize, Error
         let mut lines = BufReader::new(f).lines();
         let header = lines
             .next()
-            .ok_or_else(|| Error(format!("{}: empty", p.display())))?
+            .ok_or_else(|| Error::Federation(format!("{}: empty", p.display())))?
             .map_err(|e| io(p, e))?;
         for (j, f) in fields(&header).into_iter().enumerate() {
             let name = unquote(f);
@@ -958,7 +957,7 @@ fn merge(parts: &[PathBuf], order: &[String], out: &Path) -> Result<usize, Error
         .map(|c| {
             at.get(c)
                 .copied()
-                .ok_or_else(|| Error(format!("no federate wrote column '{c}'")))
+                .ok_or_else(|| Error::Federation(format!("no federate wrote column '{c}'")))
         })
         .collect::<Result<_, _>>()?;
     let file = std::fs::File::create(out).map_err(|e| io(out, e))?;
@@ -1077,7 +1076,7 @@ fn start_broker(
         .arg("--port=0")
         .stdout(std::process::Stdio::null())
         .spawn()
-        .map_err(|e| Error(format!("cannot start {}: {e}", exe.display())))
+        .map_err(|e| Error::Federation(format!("cannot start {}: {e}", exe.display())))
 }
 
 /// The port the broker listens on, once it does (within [`BROKER_TIMEOUT`]).
@@ -1130,7 +1129,8 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
         d.push(".federates");
         PathBuf::from(d)
     });
-    std::fs::create_dir_all(&dir).map_err(|e| Error(format!("{}: {e}", dir.display())))?;
+    std::fs::create_dir_all(&dir)
+        .map_err(|e| Error::Federation(format!("{}: {e}", dir.display())))?;
     let core = o.core.as_deref().unwrap_or(DEFAULT_CORE);
     let started = Instant::now();
     let coordination = o.timing.unwrap_or(Timing::for_federates(feds.len()));
@@ -1196,7 +1196,10 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
         {
             Ok(c) => children.push(c),
             Err(e) => {
-                failure = Some(Error(format!("cannot start {}: {e}", exe.display())));
+                failure = Some(Error::Federation(format!(
+                    "cannot start {}: {e}",
+                    exe.display()
+                )));
                 break;
             }
         }
@@ -1207,7 +1210,7 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
     let mut running: Vec<Option<std::process::Child>> = children.into_iter().map(Some).collect();
     while failure.is_none() && running.iter().any(Option::is_some) {
         if let Some(signal) = crate::interrupt::requested() {
-            failure = Some(Error(format!(
+            failure = Some(Error::Federation(format!(
                 "stopped by signal {signal}: the broker and the federates were stopped"
             )));
             break;
@@ -1230,12 +1233,12 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
                 }
                 Ok(Some(status)) => {
                     running[k] = None;
-                    failure = Some(Error(format!(
+                    failure = Some(Error::Federation(format!(
                         "federate fed{k} ({}) failed ({status}); the others were stopped",
                         feds[k].join(",")
                     )));
                 }
-                Err(e) => failure = Some(Error(format!("federate fed{k}: {e}"))),
+                Err(e) => failure = Some(Error::Federation(format!("federate fed{k}: {e}"))),
             }
         }
         std::thread::sleep(Duration::from_millis(20));

@@ -80,7 +80,7 @@ impl std::str::FromStr for Scheme {
             "jacobi" => Ok(Scheme::Jacobi),
             "gauss-seidel" => Ok(Scheme::GaussSeidel),
             "iterative" => Ok(Scheme::Iterative),
-            _ => Err(Error(format!(
+            _ => Err(Error::Algorithm(format!(
                 "unknown algorithm '{s}': jacobi, gauss-seidel or iterative"
             ))),
         }

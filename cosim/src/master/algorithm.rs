@@ -210,23 +210,25 @@ impl Algorithm for Iterative {
     fn start(&mut self, system: &mut Coupling<'_>) -> Result<(), Error> {
         let without = system.without_state();
         if !without.is_empty() {
-            return Err(Error(format!(
+            return Err(Error::Algorithm(format!(
                 "the iterative algorithm rolls steps back with fmi2GetFMUstate/fmi2SetFMUstate, \
                  which {} cannot do (canGetAndSetFMUstate is false); use jacobi or gauss-seidel",
                 without.join(", ")
             )));
         }
         if !(self.rtol >= 0.0 && self.atol >= 0.0 && self.rtol + self.atol > 0.0) {
-            return Err(Error(format!(
+            return Err(Error::Algorithm(format!(
                 "iterative algorithm: tolerances rtol = {}, atol = {} must be non-negative and not both 0",
                 self.rtol, self.atol
             )));
         }
         if self.max_iterations == 0 {
-            return Err(Error("iterative algorithm: at least one iteration".into()));
+            return Err(Error::Algorithm(
+                "iterative algorithm: at least one iteration".into(),
+            ));
         }
         if !(self.relaxation > 0.0 && self.relaxation <= 1.0) {
-            return Err(Error(format!(
+            return Err(Error::Algorithm(format!(
                 "iterative algorithm: relaxation {} must be in (0, 1]",
                 self.relaxation
             )));

@@ -70,7 +70,7 @@ impl Transport for Direct {
 
     fn deliver(&mut self, i: usize, link: &Link) -> Result<f64, Error> {
         self.values.get(i).copied().ok_or_else(|| {
-            Error(format!(
+            Error::Run(format!(
                 "connection {} set before it was read",
                 link.label()
             ))
@@ -224,7 +224,7 @@ impl Core {
             }
             passes += 1;
             if passes == MAX_PASSES {
-                return Err(Error(format!(
+                return Err(Error::Run(format!(
                     "initialization did not settle after {MAX_PASSES} exchanges (an algebraic loop that does not converge?)"
                 )));
             }

@@ -138,10 +138,10 @@ impl System {
         let (end, _, _) = self.simulate_with(opts, &mut *algorithm, &mut [&mut recorder])?;
         match end {
             End::Completed => Ok(recorder.inner.table),
-            End::Interrupted { signal, at } => Err(Error(format!(
+            End::Interrupted { signal, at } => Err(Error::Run(format!(
                 "interrupted by signal {signal} at t = {at} s"
             ))),
-            End::Failed { error, .. } => Err(Error(error)),
+            End::Failed { error, .. } => Err(Error::Run(error)),
         }
     }
 
@@ -162,7 +162,7 @@ impl System {
         self.advance_time = std::time::Duration::ZERO;
         let pool = if threads > 1 {
             let pool = Pool::new(threads)
-                .map_err(|e| Error(format!("cannot start {threads} stepping threads: {e}")))?;
+                .map_err(|e| Error::Run(format!("cannot start {threads} stepping threads: {e}")))?;
             Some(pool)
         } else {
             None
@@ -228,7 +228,7 @@ impl System {
         }
         let (core, plans) = self.core_and_plans();
         core.initialize(span.start, span.stop, plans, &mut Direct::default())
-            .map_err(|e| Error(format!("during initialization: {e}")))?;
+            .map_err(|e| Error::Initialization(Box::new(e)))?;
         algorithm.start(&mut Coupling::new(self))?;
         let started = std::time::Instant::now();
         let result = self.advance(span, algorithm, observers, tally);
@@ -264,13 +264,11 @@ impl System {
             let h = step.min(stop - t);
             algorithm
                 .step(&mut Coupling::new(self), t, h)
-                .map_err(|e| {
-                    Error(format!(
-                        "in the communication step from t = {} s to {} s ({}): {e}",
-                        seconds(t),
-                        seconds(t + h),
-                        algorithm.name()
-                    ))
+                .map_err(|e| Error::Step {
+                    from: seconds(t),
+                    to: seconds(t + h),
+                    algorithm: Some(algorithm.name().to_owned()),
+                    cause: Box::new(e),
                 })?;
             t += h;
         }

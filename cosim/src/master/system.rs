@@ -67,15 +67,15 @@ impl System {
         let mut fmus = Vec::with_capacity(sys.components.len());
         for c in &sys.components {
             let fmu = Fmu::load_with(&package.source_path(c), sharing)
-                .map_err(|e| Error(format!("component '{}' ({}): {e}", c.name, c.source)))?;
+                .map_err(|e| Error::Load(format!("component '{}' ({}): {e}", c.name, c.source)))?;
             fmus.push(Arc::new(fmu));
         }
         System::assemble(sys, fmus)
     }
 
     fn from_fmu(path: &Path, sharing: Sharing) -> Result<System, Error> {
-        let fmu =
-            Fmu::load_with(path, sharing).map_err(|e| Error(format!("{}: {e}", path.display())))?;
+        let fmu = Fmu::load_with(path, sharing)
+            .map_err(|e| Error::Load(format!("{}: {e}", path.display())))?;
         let fmu = Arc::new(fmu);
         let md = &fmu.description;
         let connectors = md
@@ -235,18 +235,18 @@ impl System {
     pub(crate) fn experiment(&self, opts: &Options) -> Result<(i64, i64, i64), Error> {
         let name = &self.name;
         let stop_s = opts.stop.or(self.stop).ok_or_else(|| {
-            Error(format!(
+            Error::Experiment(format!(
                 "system '{name}': no stop time (give --stop or a DefaultExperiment stopTime)"
             ))
         })?;
         let step_s = opts.step.or(self.step).ok_or_else(|| {
-            Error(format!(
+            Error::Experiment(format!(
                 "system '{name}': no step size (give --step or the OSP FixedStepAlgorithm baseStepSize annotation)"
             ))
         })?;
         let limit = |what: &str, v: f64| {
             ticks(v).ok_or_else(|| {
-                Error(format!(
+                Error::Experiment(format!(
                     "system '{name}': {what} {v} s is not a finite time within ±{:e} s",
                     crate::table::MAX_TIME
                 ))
@@ -258,19 +258,19 @@ impl System {
             limit("step size", step_s)?,
         );
         if step <= 0 {
-            return Err(Error(format!(
+            return Err(Error::Experiment(format!(
                 "system '{name}': step size {step_s} s must be at least 1 ns"
             )));
         }
         if stop <= start {
-            return Err(Error(format!(
+            return Err(Error::Experiment(format!(
                 "system '{name}': stop time {stop_s} s must be after the start time {} s",
                 self.start
             )));
         }
         let steps = (stop - start) / step;
         if steps > MAX_STEPS {
-            return Err(Error(format!(
+            return Err(Error::Experiment(format!(
                 "system '{name}': {steps} communication steps from {} s to {stop_s} s by {step_s} s; a run takes at most {MAX_STEPS}",
                 self.start
             )));
@@ -285,7 +285,9 @@ fn connect(sys: &ssp::System, units: &mut [Unit]) -> Result<Vec<Link>, Error> {
         sys.components
             .iter()
             .position(|c| c.name == name)
-            .ok_or_else(|| Error(format!("connection names an unknown component '{name}'")))
+            .ok_or_else(|| {
+                Error::Connection(format!("connection names an unknown component '{name}'"))
+            })
     };
     let mut links = Vec::with_capacity(sys.connections.len());
     for c in &sys.connections {
@@ -295,22 +297,24 @@ fn connect(sys: &ssp::System, units: &mut [Unit]) -> Result<Vec<Link>, Error> {
             c.start_element, c.start_connector, c.end_element, c.end_connector
         );
         let (fmu_s, fmu_d) = (Arc::clone(units[src].fmu()), Arc::clone(units[dst].fmu()));
-        let (from, _) = variable(&fmu_s.description, &c.start_element, &c.start_connector)?;
-        let (to, causality) = variable(&fmu_d.description, &c.end_element, &c.end_connector)?;
+        let (from, _) = variable(&fmu_s.description, &c.start_element, &c.start_connector)
+            .map_err(|e| Error::Connection(e.to_string()))?;
+        let (to, causality) = variable(&fmu_d.description, &c.end_element, &c.end_connector)
+            .map_err(|e| Error::Connection(e.to_string()))?;
         if from.ty() != to.ty() {
-            return Err(Error(format!(
+            return Err(Error::Connection(format!(
                 "connection {label}: {} output to {} input",
                 from.ty(),
                 to.ty()
             )));
         }
         if from.ty() == BaseType::String {
-            return Err(Error(format!(
+            return Err(Error::Connection(format!(
                 "connection {label}: String connections are not supported"
             )));
         }
         if !matches!(causality, Causality::Input | Causality::Parameter) {
-            return Err(Error(format!(
+            return Err(Error::Connection(format!(
                 "connection {label}: the end is a {causality:?} variable, not an input"
             )));
         }
@@ -337,7 +341,7 @@ fn bind(sys: &ssp::System, units: &[Unit]) -> Result<Vec<Parameter>, Error> {
         for p in &c.parameters {
             let md = &units[u].fmu().description;
             let (var, causality) =
-                variable(md, &c.name, &p.name).map_err(|e| Error(e.to_string()))?;
+                variable(md, &c.name, &p.name).map_err(|e| Error::Parameter(e.to_string()))?;
             if matches!(
                 causality,
                 Causality::Output | Causality::Local | Causality::CalculatedParameter
@@ -345,14 +349,14 @@ fn bind(sys: &ssp::System, units: &[Unit]) -> Result<Vec<Parameter>, Error> {
                 .variable(&p.name)
                 .is_some_and(|v| v.start_text().is_none())
             {
-                return Err(Error(format!(
+                return Err(Error::Parameter(format!(
                     "component '{}': parameter binding '{}': a {causality:?} variable without a start value cannot be set",
                     c.name, p.name
                 )));
             }
             if let Value::Integer(v) = p.value {
                 if i32::try_from(v).is_err() {
-                    return Err(Error(format!(
+                    return Err(Error::Parameter(format!(
                         "component '{}': parameter binding '{}': {v} is outside the 32-bit range of an FMI Integer",
                         c.name, p.name
                     )));
@@ -366,7 +370,7 @@ fn bind(sys: &ssp::System, units: &[Unit]) -> Result<Vec<Parameter>, Error> {
                     | (Value::String(_), BaseType::String)
             );
             if !ok {
-                return Err(Error(format!(
+                return Err(Error::Parameter(format!(
                     "component '{}': parameter binding '{}' gives {:?} to a {} variable",
                     c.name,
                     p.name,

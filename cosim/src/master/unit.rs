@@ -43,7 +43,7 @@ pub(crate) fn variable(
         .iter()
         .position(|v| v.name == name)
         .ok_or_else(|| {
-            Error(format!(
+            Error::Load(format!(
                 "component '{comp}': '{name}' is not a variable of {}",
                 md.model_name
             ))
@@ -127,7 +127,7 @@ impl Unit {
         for k in &c.connectors {
             let (var, causality) = variable(md, &c.name, &k.name)?;
             if var.ty != BaseType::from(k.ty) {
-                return Err(Error(format!(
+                return Err(Error::Load(format!(
                     "component '{}': connector '{}' is {:?} in the SSD but {} in {}",
                     c.name, k.name, k.ty, var.ty, md.model_name
                 )));
@@ -139,7 +139,7 @@ impl Unit {
                 ssp::Kind::CalculatedParameter => Causality::CalculatedParameter,
             };
             if causality != expected {
-                return Err(Error(format!(
+                return Err(Error::Load(format!(
                     "component '{}': connector '{}' is {:?} in the SSD but {causality:?} in {}",
                     c.name, k.name, k.kind, md.model_name
                 )));
@@ -153,11 +153,13 @@ impl Unit {
         let init_deps = dependencies(md, md.model_structure.initial_unknowns());
         let (step_deps, init_deps) = match (step_deps, init_deps) {
             (Ok(s), Ok(i)) => (s, i),
-            (Err(e), _) | (_, Err(e)) => return Err(Error(format!("component '{}': {e}", c.name))),
+            (Err(e), _) | (_, Err(e)) => {
+                return Err(Error::Load(format!("component '{}': {e}", c.name)))
+            }
         };
         let inst = fmu
             .instantiate(&c.name)
-            .map_err(|e| Error(format!("component '{}': {e}", c.name)))?;
+            .map_err(|e| Error::Load(format!("component '{}': {e}", c.name)))?;
         Ok(Unit {
             local: true,
             quiet: false,
@@ -295,21 +297,12 @@ impl Unit {
         if s <= Status::Warning {
             return Ok(());
         }
-        let what = what();
-        let last = self
-            .last_message
-            .as_deref()
-            .map(|m| format!(": {m}"))
-            .unwrap_or_default();
-        let why = if s == Status::Discard {
-            " (the master cannot repeat a rejected step)"
-        } else {
-            ""
-        };
-        Err(Error(format!(
-            "component '{}': {what} returned {s:?}{why}{last}",
-            self.name
-        )))
+        Err(Error::Fmu {
+            unit: self.name.clone(),
+            call: what(),
+            status: s,
+            log: self.last_message.clone(),
+        })
     }
 
     /// Print the unit's new log messages with its name; keep warnings and the last message.

@@ -566,7 +566,7 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     let helics = Helics::open(&lib_path)?;
     let started = Instant::now();
     let package = ssp::read(&o.system)?;
-    let mut system = System::load(&package)?;
+    let mut system = System::builder(&package).load()?;
     let names = component_names(&package);
     let mut mine = vec![false; names.len()];
     for c in &o.components {
@@ -1114,7 +1114,7 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
     let package = ssp::read(&o.system)?;
     let names = component_names(&package);
     let feds = groups(&names, o.groups.as_deref())?;
-    let order = System::load(&package)?.columns();
+    let order = System::builder(&package).load()?.columns();
     let out = o.out.clone().unwrap_or_else(|| {
         PathBuf::from(format!(
             "{}.csv",

@@ -5,7 +5,7 @@
 //! happens to the results is up to the [`Observer`]s ([`CsvWriter`] streams them to disk,
 //! [`Progress`] reports, [`Recorder`] keeps them in memory). The loop polls
 //! [`crate::interrupt::requested`] at each communication point. [`Jacobi`] and [`Iterative`]
-//! step the units on [`System::set_threads`] threads (a small pool, the caller included), with
+//! step the units on [`Builder::threads`] threads (a small pool, the caller included), with
 //! the results of one thread bit for bit.
 //!
 //! One exchange moves every connection's value from its start connector to its end connector
@@ -16,12 +16,13 @@
 //! that comes first in the SSD: that connection carries the value from before the exchange.
 //! Initialization repeats the exchange until no value changes.
 //!
-//! The initialization, exchange, stepping and sampling live in one
+//! A system is loaded by a [`Builder`] (`System::builder(path).threads(2).load()`, or `.run`
+//! to load and run it). The initialization, exchange, stepping and sampling live in one
 //! coupling core (`coupling`), which the HELICS federate ([`crate::federate`]) drives as well,
 //! over its own components and with its values travelling through HELICS.
 //!
 //! The parts: `unit` (one loaded component and its FMI calls), `graph` (connections and their
-//! exchange order), `coupling` (the core), `system` (loading, the experiment),
+//! exchange order), `coupling` (the core), `system` (loading, the builder, the experiment),
 //! `run` (the run loop), [`algorithm`](Algorithm), observers and results.
 
 mod algorithm;
@@ -41,8 +42,8 @@ pub use observer::{End, Observer, Progress, Recorder, RunInfo};
 pub use results::{
     matches, partial_path, Csv, CsvWriter, Format, Mat, MatWriter, Record, ResultWriter, Select,
 };
-pub use run::{run, run_on, run_with, simulate, Outcome, MAX_STEPS};
-pub use system::System;
+pub use run::{Outcome, MAX_STEPS};
+pub use system::{Builder, Source, System};
 
 pub use crate::fmu::Sharing;
 
@@ -93,35 +94,4 @@ pub struct Options {
     pub stop: Option<f64>,
     pub step: Option<f64>,
     pub algorithm: Scheme,
-}
-
-/// How a run uses the machine, besides [`Options`] (which other crates build as struct
-/// literals): threads stepping the units, and whether identical binaries share one library.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct Execution {
-    /// Threads that step the units of a Jacobi step (and of each iterative attempt), the
-    /// calling thread included; 1 steps them in turn on the calling thread. Results do not
-    /// depend on it (bit for bit): the units of one step are independent.
-    pub threads: usize,
-    pub sharing: Sharing,
-}
-
-impl Default for Execution {
-    /// One thread, identical binaries shared.
-    fn default() -> Self {
-        Execution {
-            threads: 1,
-            sharing: Sharing::Shared,
-        }
-    }
-}
-
-impl Execution {
-    /// `threads` threads (at least 1), identical binaries shared.
-    pub fn threads(threads: usize) -> Execution {
-        Execution {
-            threads: threads.max(1),
-            ..Execution::default()
-        }
-    }
 }

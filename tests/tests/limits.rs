@@ -17,7 +17,8 @@ fn column(t: &Table, name: &str) -> Vec<f64> {
 /// The run's rows (all of them, or those up to a failure) and its outcome.
 fn run(name: &str) -> (Table, Result<master::Outcome, master::Error>) {
     let mut recorder = Recorder::default();
-    let outcome = master::run(&scenario(name), &Options::default(), &mut [&mut recorder]);
+    let outcome =
+        master::System::builder(&scenario(name)).run(&Options::default(), &mut [&mut recorder]);
     (recorder.table, outcome)
 }
 

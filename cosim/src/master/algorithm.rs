@@ -44,7 +44,7 @@ impl Coupling<'_> {
 
     /// `fmi2DoStep` of every unit from `t` by `h` (ticks), all from the inputs they hold, each
     /// followed by the reading of the unit's outputs, on the system's threads (see
-    /// [`super::System::set_threads`]). Every unit is stepped; then the statuses are checked in
+    /// [`super::Builder::threads`]). Every unit is stepped; then the statuses are checked in
     /// SSD order (the first failing unit is reported, the logs handled in that order), so the
     /// results, messages and warnings do not depend on the number of threads.
     pub fn step_all(&mut self, t: i64, h: i64) -> Result<(), Error> {
@@ -108,7 +108,7 @@ impl Coupling<'_> {
 }
 
 /// All units step from the same exchanged inputs (on the system's threads, see
-/// [`super::System::set_threads`]), then one exchange.
+/// [`super::Builder::threads`]), then one exchange.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct Jacobi;
 

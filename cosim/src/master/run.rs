@@ -5,12 +5,10 @@ use super::coupling::Direct;
 use super::graph::Phase;
 use super::pool::Pool;
 use super::results::{Record, Select};
-use super::system::System;
-use super::{Algorithm, Coupling, End, Error, Execution, Observer, Options, Recorder, RunInfo};
+use super::system::{Builder, System};
+use super::{Algorithm, Coupling, End, Error, Observer, Options, Recorder, RunInfo};
 use crate::interrupt;
-use crate::ssp;
 use crate::table::{seconds, Table};
-use std::path::Path;
 
 /// How a run went: how it ended, its warnings (also printed to stderr as they happen) and
 /// where the time went.
@@ -36,73 +34,51 @@ pub struct Outcome {
     pub threads: usize,
 }
 
-/// Load the system at `path` (an `.ssp`, a directory or an `.ssd`) and simulate it to its end,
-/// keeping the results in memory (tests and short runs; [`run`] streams them instead).
-pub fn simulate(path: &Path, opts: &Options) -> Result<Table, Error> {
-    System::load(&ssp::read(path)?)?.simulate(opts)
-}
+impl Builder<'_> {
+    /// Load the system and simulate it, handing every communication point to `observers`.
+    ///
+    /// `Err` when the system cannot be loaded or its experiment is invalid (no observer has
+    /// started then); a run that starts returns `Ok` with [`Outcome::end`] saying how it ended.
+    pub fn run(
+        mut self,
+        opts: &Options,
+        observers: &mut [&mut dyn Observer],
+    ) -> Result<Outcome, Error> {
+        let started = std::time::Instant::now();
+        let mut system = self.load()?;
+        let load_time = started.elapsed();
+        let columns = system.columns().len() - 1;
+        let (units, libraries, threads) = (
+            system.units(),
+            system.libraries(),
+            system.stepping_threads(),
+        );
+        let mut builtin = None;
+        let algorithm: &mut dyn Algorithm = match self.algorithm.take() {
+            Some(a) => a,
+            None => &mut **builtin.insert(opts.algorithm.algorithm()),
+        };
+        let (end, samples, simulated) = system.simulate_with(opts, algorithm, observers)?;
+        Ok(Outcome {
+            end,
+            warnings: system.core_mut().take_warnings(),
+            samples,
+            simulated,
+            columns,
+            load_time,
+            run_time: started.elapsed() - load_time,
+            advance_time: system.advance_time(),
+            units,
+            libraries,
+            threads,
+        })
+    }
 
-/// Load the system at `path` (an `.ssp`, a directory, an `.ssd` or one `.fmu` on its own) and
-/// simulate it, handing every communication point to `observers`.
-///
-/// `Err` when the system cannot be loaded or its experiment is invalid (no observer has started
-/// then); a run that starts returns `Ok` with [`Outcome::end`] saying how it ended.
-pub fn run(
-    path: &Path,
-    opts: &Options,
-    observers: &mut [&mut dyn Observer],
-) -> Result<Outcome, Error> {
-    run_with(path, opts, &mut *opts.algorithm.algorithm(), observers)
-}
-
-/// [`run`] with an algorithm of the caller's (e.g. an [`super::Iterative`] with its own
-/// tolerances).
-pub fn run_with(
-    path: &Path,
-    opts: &Options,
-    algorithm: &mut dyn Algorithm,
-    observers: &mut [&mut dyn Observer],
-) -> Result<Outcome, Error> {
-    run_on(path, opts, &Execution::default(), algorithm, observers)
-}
-
-/// [`run_with`] on the threads and with the sharing of `exec`.
-pub fn run_on(
-    path: &Path,
-    opts: &Options,
-    exec: &Execution,
-    algorithm: &mut dyn Algorithm,
-    observers: &mut [&mut dyn Observer],
-) -> Result<Outcome, Error> {
-    let started = std::time::Instant::now();
-    // An unpacked .ssp lives as long as its FMUs are loaded (they are unpacked again each).
-    let mut system = if path.extension().is_some_and(|e| e == "fmu") {
-        System::alone_with(path, exec.sharing)?
-    } else {
-        System::load_with(&ssp::read(path)?, exec.sharing)?
-    };
-    system.set_threads(exec.threads);
-    let load_time = started.elapsed();
-    let columns = system.columns().len() - 1;
-    let (units, libraries, threads) = (
-        system.units(),
-        system.libraries(),
-        system.stepping_threads(),
-    );
-    let (end, samples, simulated) = system.simulate_with(opts, algorithm, observers)?;
-    Ok(Outcome {
-        end,
-        warnings: system.core_mut().take_warnings(),
-        samples,
-        simulated,
-        columns,
-        load_time,
-        run_time: started.elapsed() - load_time,
-        advance_time: system.advance_time(),
-        units,
-        libraries,
-        threads,
-    })
+    /// Load the system and simulate it to its end with the algorithm `opts` names, every
+    /// output kept in memory (tests and short runs; [`Builder::run`] streams them instead).
+    pub fn simulate(&self, opts: &Options) -> Result<Table, Error> {
+        self.load()?.simulate(opts)
+    }
 }
 
 /// The most communication steps one run takes (a billion rows would be a CSV of tens of GB per

@@ -1,16 +1,93 @@
-//! A loaded system: how it is loaded, its units and resolved connections and parameter
-//! bindings, its experiment and what is known about it.
+//! A loaded system: where it comes from and how it is loaded (the [`Builder`]), its units and
+//! resolved connections and parameter bindings, its experiment and what is known about it.
 
 use super::coupling::{direct_plan, Core, Parameter, Plans};
 use super::graph::{order_links, order_units, Ends, Link, Phase};
 use super::unit::{variable, Unit};
-use super::{Error, Options, Sharing, MAX_STEPS};
+use super::{Algorithm, Error, Options, Sharing, MAX_STEPS};
 use crate::fmu::Fmu;
 use crate::ssp::{self, Component, Value};
 use crate::table::ticks;
 use model_description::{BaseType, Causality};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
+
+/// What a [`Builder`] loads: a path (an `.ssp`, a directory, an `.ssd` or one `.fmu` on its
+/// own) or a package already read.
+#[derive(Clone, Copy)]
+pub enum Source<'a> {
+    Path(&'a Path),
+    Package(&'a ssp::Package),
+}
+
+impl<'a> From<&'a Path> for Source<'a> {
+    fn from(p: &'a Path) -> Self {
+        Source::Path(p)
+    }
+}
+
+impl<'a> From<&'a PathBuf> for Source<'a> {
+    fn from(p: &'a PathBuf) -> Self {
+        Source::Path(p)
+    }
+}
+
+impl<'a> From<&'a ssp::Package> for Source<'a> {
+    fn from(p: &'a ssp::Package) -> Self {
+        Source::Package(p)
+    }
+}
+
+/// How to load a system and run it: `System::builder(path).threads(2).load()`, or
+/// `.run(&opts, &mut observers)` to load and run it in one go.
+pub struct Builder<'a> {
+    pub(super) source: Source<'a>,
+    sharing: Sharing,
+    threads: usize,
+    pub(super) algorithm: Option<&'a mut dyn Algorithm>,
+}
+
+impl<'a> Builder<'a> {
+    /// Whether components whose binaries are identical share one loaded library (the default,
+    /// [`Sharing::Shared`]), each with its own unpacked resources.
+    pub fn sharing(mut self, sharing: Sharing) -> Self {
+        self.sharing = sharing;
+        self
+    }
+
+    /// Step the units of each Jacobi step (and each iterative attempt) on `threads` threads,
+    /// the caller's included (at least 1, at most one per unit; 1, the default, steps them in
+    /// turn). Gauss-Seidel steps in turn whatever this says. Results do not depend on it (bit
+    /// for bit): the units of one step are independent.
+    pub fn threads(mut self, threads: usize) -> Self {
+        self.threads = threads.max(1);
+        self
+    }
+
+    /// Run with `algorithm` (e.g. an [`super::Iterative`] with its own tolerances) instead of
+    /// the one [`Options::algorithm`] names.
+    pub fn algorithm(mut self, algorithm: &'a mut dyn Algorithm) -> Self {
+        self.algorithm = Some(algorithm);
+        self
+    }
+
+    /// Load every component's FMU, resolve the connections and check the parameter bindings.
+    /// One `.fmu` on its own: every output recorded, inputs held at their start values, the
+    /// experiment from its `DefaultExperiment` (stop 1 s and step 1 ms where it gives none).
+    pub fn load(&self) -> Result<System, Error> {
+        let mut system = match self.source {
+            Source::Path(path) if path.extension().is_some_and(|e| e == "fmu") => {
+                System::from_fmu(path, self.sharing)?
+            }
+            // An unpacked .ssp lives as long as its FMUs are loaded (they are unpacked again
+            // each).
+            Source::Path(path) => System::from_package(&ssp::read(path)?, self.sharing)?,
+            Source::Package(package) => System::from_package(package, self.sharing)?,
+        };
+        system.threads = self.threads;
+        Ok(system)
+    }
+}
 
 /// A loaded system, ready to simulate once.
 pub struct System {
@@ -25,41 +102,21 @@ pub struct System {
     name: String,
     /// The signals recorded by default (the SSP's record annotation).
     record: Vec<String>,
-    /// Threads asked for (see [`System::set_threads`]).
+    /// Threads asked for (see [`Builder::threads`]).
     threads: usize,
     /// Wall time of the last run after initialization: its steps and samples.
     pub(super) advance_time: std::time::Duration,
 }
 
 impl System {
-    /// Load every component's FMU, resolve the connections and check the parameter bindings.
-    /// Components whose binaries are identical share one loaded library ([`Sharing::Shared`]),
-    /// each with its own unpacked resources.
-    pub fn load(package: &ssp::Package) -> Result<System, Error> {
-        System::load_with(package, Sharing::Shared)
-    }
-
-    /// [`System::load`] with a choice of sharing.
-    pub fn load_with(package: &ssp::Package, sharing: Sharing) -> Result<System, Error> {
-        System::from_package(package, sharing)
-    }
-
-    /// One FMU on its own: every output recorded, inputs held at their start values, the
-    /// experiment from its `DefaultExperiment` (stop 1 s and step 1 ms where it gives none).
-    pub fn alone(path: &Path) -> Result<System, Error> {
-        System::alone_with(path, Sharing::Shared)
-    }
-
-    /// [`System::alone`] with a choice of sharing.
-    pub fn alone_with(path: &Path, sharing: Sharing) -> Result<System, Error> {
-        System::from_fmu(path, sharing)
-    }
-
-    /// Step the units of each Jacobi step (and each iterative attempt) on `threads` threads,
-    /// the caller's included (at most one per unit; 1, the default, steps them in turn).
-    /// Gauss-Seidel steps in turn whatever this says.
-    pub fn set_threads(&mut self, threads: usize) {
-        self.threads = threads.max(1);
+    /// How to load the system at `source` (a path or a package already read).
+    pub fn builder<'a>(source: impl Into<Source<'a>>) -> Builder<'a> {
+        Builder {
+            source: source.into(),
+            sharing: Sharing::Shared,
+            threads: 1,
+            algorithm: None,
+        }
     }
 
     fn from_package(package: &ssp::Package, sharing: Sharing) -> Result<System, Error> {

@@ -14,7 +14,8 @@
 //! this federate's components: the federate hands it its rounds as the plan of each exchange
 //! and is its transport (values between its own components copied, values to and from other
 //! federates published and taken in the rounds). What is left here is HELICS's: the library,
-//! the federate and its interfaces, the rounds and their grants, and the launcher.
+//! the federate, its interfaces and its run; the schedule of rounds and grants is in `rounds`,
+//! the launcher of a whole federation in `launch`.
 
 use crate::dl::dl_api;
 use crate::master::{
@@ -27,6 +28,14 @@ use std::collections::BTreeMap;
 use std::ffi::{CStr, CString};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+
+mod launch;
+mod rounds;
+
+pub use launch::{
+    groups, run_federation, FederationOptions, FederationReport, Timing, GLOBAL_FROM,
+};
+use rounds::{packed_slots, schedule};
 
 fn err<T>(msg: impl Into<String>) -> Result<T, Error> {
     Err(Error::Federation(msg.into()))
@@ -77,8 +86,6 @@ pub struct Helics {
 pub const DEFAULT_CORE: &str = "tcpss";
 /// How long a federate tries to join its broker before it gives up with the broker's address.
 pub const JOIN_TIMEOUT: Duration = Duration::from_secs(20);
-/// How long the launcher waits for its broker to listen.
-const BROKER_TIMEOUT: Duration = Duration::from_secs(20);
 const HELICS_DATA_TYPE_DOUBLE: c_int = 1;
 const HELICS_DATA_TYPE_VECTOR: c_int = 4;
 const HELICS_FLAG_UNINTERRUPTIBLE: c_int = 1;
@@ -224,83 +231,54 @@ pub fn find_broker(lib: &Path) -> Result<PathBuf, Error> {
     }
 }
 
-/// An exchange split into rounds: the events of each round in the master's order, and the
-/// connections whose value arrives (is taken from HELICS) at the start of each round.
-#[derive(Debug, Default)]
-struct Schedule {
-    rounds: Vec<Vec<Event>>,
-    receive: Vec<Vec<usize>>,
-    /// The rounds this federate must be granted: those in which it takes a value from or
-    /// publishes one to another federate, and the last (so that no publication of the next
-    /// exchange overtakes a read of this one). It skips the others: a round costs a message
-    /// only from the federates that take part in it.
-    granted: Vec<bool>,
+fn cstring(s: &str) -> Result<CString, Error> {
+    CString::new(s).map_err(|_| Error::Federation(format!("'{s}': a NUL in a name")))
 }
 
-impl Schedule {
-    /// Mark the rounds a federate of the units `mine` must be granted ([`Schedule::granted`]).
-    fn grant_for(&mut self, sys: &System, mine: &[bool]) {
-        let links = sys.core().links();
-        let remote = |i: usize| mine[links[i].src()] != mine[links[i].dst()];
-        let last = self.rounds.len() - 1;
-        self.granted = (0..self.rounds.len())
-            .map(|j| {
-                j == last
-                    || self.receive[j]
-                        .iter()
-                        .any(|&i| remote(i) && mine[links[i].dst()])
-                    || self.rounds[j].iter().any(|e| match *e {
-                        Event::Produce(i) => remote(i) && mine[links[i].src()],
-                        Event::Local(_) | Event::Consume(_) => false,
-                    })
-            })
-            .collect();
+/// A value federate named `name` on a `core` core connecting to `broker`.
+fn create_federate(h: &Helics, name: &str, core: &str, broker: &str) -> Result<Handle, Error> {
+    // SAFETY: plain constructor.
+    let info = unsafe { (h.api.create_federate_info)() };
+    if info.is_null() {
+        return err("HELICS: cannot create a federate info");
     }
-}
-
-/// The rounds of one exchange walking `order`: a connection between two components is read at
-/// its source in the source's current round and set at its destination one round later at the
-/// earliest; a source publishes an output once per round (a second read of it after an input
-/// that feeds through was set waits for the next round).
-fn schedule(sys: &System, order: &[usize], phase: Phase) -> Schedule {
-    let n = sys.units();
-    let mut round = vec![0usize; n];
-    let mut published: Vec<Option<usize>> = vec![None; n];
-    let mut dirty = vec![false; n];
-    let mut s = Schedule::default();
-    let put = |s: &mut Schedule, r: usize, e: Event| {
-        while s.rounds.len() <= r {
-            s.rounds.push(Vec::new());
-            s.receive.push(Vec::new());
+    let result = (|| {
+        let core_c = cstring(core)?;
+        // SAFETY: a live federate info, C strings alive across the calls.
+        h.call("set core type", |e| unsafe {
+            (h.api.info_core_type)(info, core_c.as_ptr(), e)
+        })?;
+        let init = cstring(&format!(
+            "--federates=1 --broker={broker} --timeout={}s",
+            JOIN_TIMEOUT.as_secs()
+        ))?;
+        // SAFETY: a live federate info; the string lives across the call.
+        h.call("set core init string", |e| unsafe {
+            (h.api.info_core_init)(info, init.as_ptr(), e)
+        })?;
+        // SAFETY: a live federate info.
+        h.call("set uninterruptible", |e| unsafe {
+            (h.api.info_flag)(info, HELICS_FLAG_UNINTERRUPTIBLE, 1, e)
+        })?;
+        let n = cstring(name)?;
+        let fed = h.call(
+            &format!(
+                "cannot join the federation at broker {broker} as '{name}' within {} s (no {core} \
+                 broker answered there, or it refused the federate: is the address right, is \
+                 the broker running, is the name unique?)",
+                JOIN_TIMEOUT.as_secs()
+            ),
+            // SAFETY: a live federate info; the name lives across the call.
+            |e| unsafe { (h.api.create_value_federate)(n.as_ptr(), info, e) },
+        )?;
+        if fed.is_null() {
+            return err(format!("HELICS: no federate from broker {broker}"));
         }
-        s.rounds[r].push(e);
-    };
-    for &i in order {
-        let l = &sys.core().links()[i];
-        let (src, dst) = (l.src(), l.dst());
-        if src == dst {
-            put(&mut s, round[src], Event::Local(i));
-        } else {
-            if published[src] == Some(round[src]) && dirty[src] {
-                round[src] += 1;
-            }
-            let p = round[src];
-            published[src] = Some(p);
-            dirty[src] = false;
-            put(&mut s, p, Event::Produce(i));
-            round[dst] = round[dst].max(p + 1);
-            put(&mut s, round[dst], Event::Consume(i));
-            s.receive[p + 1].push(i);
-        }
-        if l.feeds(phase) {
-            dirty[dst] = true;
-        }
-    }
-    if s.rounds.is_empty() {
-        s.rounds.push(Vec::new());
-        s.receive.push(Vec::new());
-    }
-    s
+        Ok(fed)
+    })();
+    // SAFETY: freed once; the federate keeps its own copy.
+    unsafe { (h.api.info_free)(info) };
+    result
 }
 
 /// What to run: the system, this federate's components and where its broker is.
@@ -345,19 +323,6 @@ struct Pack {
     values: Vec<f64>,
     /// Published this round (a publication) / read this round (an input).
     touched: bool,
-}
-
-/// The outputs of each component that a component other than itself reads, in slot order:
-/// the same for every federate, whatever the grouping.
-fn packed_slots(sys: &System) -> BTreeMap<usize, BTreeMap<usize, usize>> {
-    let mut slots: BTreeMap<usize, std::collections::BTreeSet<usize>> = BTreeMap::new();
-    for l in sys.core().links().iter().filter(|l| l.src() != l.dst()) {
-        slots.entry(l.src()).or_default().insert(l.slot());
-    }
-    slots
-        .into_iter()
-        .map(|(u, s)| (u, s.into_iter().enumerate().map(|(k, s)| (s, k)).collect()))
-        .collect()
 }
 
 /// The HELICS side of a running federate.
@@ -735,56 +700,6 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     Ok(report)
 }
 
-fn cstring(s: &str) -> Result<CString, Error> {
-    CString::new(s).map_err(|_| Error::Federation(format!("'{s}': a NUL in a name")))
-}
-
-/// A value federate named `name` on a `core` core connecting to `broker`.
-fn create_federate(h: &Helics, name: &str, core: &str, broker: &str) -> Result<Handle, Error> {
-    // SAFETY: plain constructor.
-    let info = unsafe { (h.api.create_federate_info)() };
-    if info.is_null() {
-        return err("HELICS: cannot create a federate info");
-    }
-    let result = (|| {
-        let core_c = cstring(core)?;
-        // SAFETY: a live federate info, C strings alive across the calls.
-        h.call("set core type", |e| unsafe {
-            (h.api.info_core_type)(info, core_c.as_ptr(), e)
-        })?;
-        let init = cstring(&format!(
-            "--federates=1 --broker={broker} --timeout={}s",
-            JOIN_TIMEOUT.as_secs()
-        ))?;
-        // SAFETY: a live federate info; the string lives across the call.
-        h.call("set core init string", |e| unsafe {
-            (h.api.info_core_init)(info, init.as_ptr(), e)
-        })?;
-        // SAFETY: a live federate info.
-        h.call("set uninterruptible", |e| unsafe {
-            (h.api.info_flag)(info, HELICS_FLAG_UNINTERRUPTIBLE, 1, e)
-        })?;
-        let n = cstring(name)?;
-        let fed = h.call(
-            &format!(
-                "cannot join the federation at broker {broker} as '{name}' within {} s (no {core} \
-                 broker answered there, or it refused the federate: is the address right, is \
-                 the broker running, is the name unique?)",
-                JOIN_TIMEOUT.as_secs()
-            ),
-            // SAFETY: a live federate info; the name lives across the call.
-            |e| unsafe { (h.api.create_value_federate)(n.as_ptr(), info, e) },
-        )?;
-        if fed.is_null() {
-            return err(format!("HELICS: no federate from broker {broker}"));
-        }
-        Ok(fed)
-    })();
-    // SAFETY: freed once; the federate keeps its own copy.
-    unsafe { (h.api.info_free)(info) };
-    result
-}
-
 /// Initialize, exchange and step as the Jacobi master does, over this federate's units: the
 /// coupling core's calls, with the federate as its transport and its rounds as the plans.
 fn drive(
@@ -840,159 +755,6 @@ fn drive(
     core.terminate()
 }
 
-/// A federation on one machine: the system, its federates' components, where the results go.
-#[derive(Debug, Clone, Default)]
-pub struct FederationOptions {
-    pub system: PathBuf,
-    /// `a,b;c;d`: the components of each federate; components left out run one per federate.
-    pub groups: Option<String>,
-    pub out: Option<PathBuf>,
-    pub helics_lib: Option<PathBuf>,
-    pub opts: Options,
-    /// HELICS core type (default [`DEFAULT_CORE`]).
-    pub core: Option<String>,
-    /// The broker's time coordination (default: [`Timing::for_federates`]).
-    pub timing: Option<Timing>,
-    /// Where the federates write their CSVs (default: next to `out`).
-    pub work_dir: Option<PathBuf>,
-}
-
-/// How a federation went.
-#[derive(Debug, Clone)]
-pub struct FederationReport {
-    pub federates: Vec<Vec<String>>,
-    pub rows: usize,
-    /// Wall time from starting the broker to the last federate's exit.
-    pub wall: Duration,
-    /// Each federate's printed summary (its last stdout line).
-    pub summaries: Vec<String>,
-    /// The commands to run the same federation on several machines.
-    pub commands: Vec<String>,
-}
-
-/// The federates of `groups` over `components` (in SSD order; unlisted ones alone).
-pub fn groups(components: &[String], spec: Option<&str>) -> Result<Vec<Vec<String>>, Error> {
-    let mut out: Vec<Vec<String>> = Vec::new();
-    let mut seen = Vec::new();
-    for g in spec
-        .unwrap_or("")
-        .split(';')
-        .filter(|g| !g.trim().is_empty())
-    {
-        let mut group = Vec::new();
-        for c in g.split(',').map(str::trim).filter(|c| !c.is_empty()) {
-            if !components.iter().any(|n| n == c) {
-                return err(format!(
-                    "--groups: no component '{c}' ({})",
-                    components.join(", ")
-                ));
-            }
-            if seen.iter().any(|s| s == c) {
-                return err(format!("--groups: '{c}' is in two groups"));
-            }
-            seen.push(c.to_owned());
-            group.push(c.to_owned());
-        }
-        out.push(group);
-    }
-    for c in components {
-        if !seen.contains(c) {
-            out.push(vec![c.clone()]);
-        }
-    }
-    Ok(out)
-}
-
-/// Split one CSV line into its fields (as written: quoted fields may hold commas).
-fn fields(line: &str) -> Vec<&str> {
-    let mut out = Vec::new();
-    let (mut start, mut quoted) = (0, false);
-    for (i, ch) in line.char_indices() {
-        match ch {
-            '"' => quoted = !quoted,
-            ',' if !quoted => {
-                out.push(&line[start..i]);
-                start = i + 1;
-            }
-            _ => {}
-        }
-    }
-    out.push(&line[start..]);
-    out
-}
-
-/// A CSV header field's name (unquoted).
-fn unquote(f: &str) -> String {
-    f.strip_prefix('"')
-        .and_then(|f| f.strip_suffix('"'))
-        .map_or_else(|| f.to_owned(), |f| f.replace("\"\"", "\""))
-}
-
-/// Merge the federates' CSVs (same times) into `out`, columns in `order` (the master's).
-fn merge(parts: &[PathBuf], order: &[String], out: &Path) -> Result<usize, Error> {
-    use std::io::{BufRead, BufReader, BufWriter, Write};
-    let io = |p: &Path, e: std::io::Error| Error::Federation(format!("{}: {e}", p.display()));
-    let mut readers = Vec::new();
-    // (part, field) of each output column.
-    let mut at: BTreeMap<String, (usize, usize)> = BTreeMap::new();
-    let mut header_text: BTreeMap<String, String> = BTreeMap::new();
-    for (k, p) in parts.iter().enumerate() {
-        let f = std::fs::File::open(p).map_err(|e| io(p, e))?;
-        let mut lines = BufReader::new(f).lines();
-        let header = lines
-            .next()
-            .ok_or_else(|| Error::Federation(format!("{}: empty", p.display())))?
-            .map_err(|e| io(p, e))?;
-        for (j, f) in fields(&header).into_iter().enumerate() {
-            let name = unquote(f);
-            if j > 0 || k == 0 {
-                header_text.insert(name.clone(), f.to_owned());
-                at.insert(name, (k, j));
-            }
-        }
-        readers.push(lines);
-    }
-    let picks: Vec<(usize, usize)> = order
-        .iter()
-        .map(|c| {
-            at.get(c)
-                .copied()
-                .ok_or_else(|| Error::Federation(format!("no federate wrote column '{c}'")))
-        })
-        .collect::<Result<_, _>>()?;
-    let file = std::fs::File::create(out).map_err(|e| io(out, e))?;
-    let mut w = BufWriter::new(file);
-    let head: Vec<&str> = order.iter().map(|c| header_text[c].as_str()).collect();
-    writeln!(w, "{}", head.join(",")).map_err(|e| io(out, e))?;
-    let mut rows = 0;
-    loop {
-        let mut lines = Vec::with_capacity(readers.len());
-        for (k, r) in readers.iter_mut().enumerate() {
-            match r.next() {
-                Some(l) => lines.push(l.map_err(|e| io(&parts[k], e))?),
-                None => break,
-            }
-        }
-        if lines.len() < readers.len() {
-            if !lines.is_empty() {
-                return err("the federates' CSVs have different numbers of rows");
-            }
-            break;
-        }
-        let split: Vec<Vec<&str>> = lines.iter().map(|l| fields(l)).collect();
-        if split.iter().any(|f| f[0] != split[0][0]) {
-            return err(format!(
-                "the federates' CSVs disagree on the time at row {rows}"
-            ));
-        }
-        let row: Vec<&str> = picks.iter().map(|&(k, j)| split[k][j]).collect();
-        writeln!(w, "{}", row.join(",")).map_err(|e| io(out, e))?;
-        rows += 1;
-    }
-    w.flush().map_err(|e| io(out, e))?;
-    Ok(rows)
-}
-
 /// The system's component names, in SSD order.
 fn component_names(package: &ssp::Package) -> Vec<String> {
     package
@@ -1003,305 +765,9 @@ fn component_names(package: &ssp::Package) -> Vec<String> {
         .collect()
 }
 
-/// How the broker coordinates time ([`FederationOptions::timing`]).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Timing {
-    /// HELICS's default: the federates' cores negotiate each grant among themselves.
-    Distributed,
-    /// One coordinator at the broker: every round is a barrier, a grant one request to the
-    /// broker and one answer, whatever the number of federates.
-    Global,
-}
-
-/// From this many federates on, [`Timing::Global`] by default. Measured on case study I (1 s at
-/// 1 ms, this project's 2-core machine, idle): distributed 1.27, 1.96-2.28, 5.5 and 11.6 ms per
-/// step for 2, 3, 4 and 5 federates, global 2.3-2.5, 2.7, 2.7 and 2.9 ms (docs/scaling.md).
-pub const GLOBAL_FROM: usize = 4;
-
-impl Timing {
-    /// The default for `federates` federates.
-    pub fn for_federates(federates: usize) -> Timing {
-        if federates >= GLOBAL_FROM {
-            Timing::Global
-        } else {
-            Timing::Distributed
-        }
-    }
-
-    /// The broker's options for it.
-    fn flags(self) -> &'static [&'static str] {
-        match self {
-            Timing::Distributed => &["--loglevel=error"],
-            Timing::Global => &["--globaltime", "--loglevel=error"],
-        }
-    }
-}
-
-/// A child process of the launcher, which ends with it (SIGTERM when the launcher dies, also by
-/// SIGKILL, so that no broker or federate outlives its federation).
-fn child(program: &Path) -> std::process::Command {
-    use std::os::unix::process::CommandExt;
-    let mut c = std::process::Command::new(program);
-    // SAFETY: prctl is async-signal-safe; it only sets this child's parent-death signal.
-    unsafe {
-        c.pre_exec(|| {
-            if libc::prctl(libc::PR_SET_PDEATHSIG, libc::SIGTERM) != 0 {
-                return Err(std::io::Error::last_os_error());
-            }
-            Ok(())
-        });
-    }
-    c
-}
-
-/// End a child and reap it.
-fn stop(c: &mut std::process::Child) {
-    let _ = c.kill();
-    let _ = c.wait();
-}
-
-/// `helics_broker` for `federates` federates on loopback, on a port the kernel chooses and holds
-/// for it (port 0): no other process can take it between choosing and listening.
-fn start_broker(
-    exe: &Path,
-    core: &str,
-    federates: usize,
-    timing: Timing,
-) -> Result<std::process::Child, Error> {
-    child(exe)
-        .args(["-f", &federates.to_string()])
-        .arg(format!("--coretype={core}"))
-        .args(timing.flags())
-        .arg("--local_interface=tcp://127.0.0.1")
-        .arg("--port=0")
-        .stdout(std::process::Stdio::null())
-        .spawn()
-        .map_err(|e| Error::Federation(format!("cannot start {}: {e}", exe.display())))
-}
-
-/// The port the broker listens on, once it does (within [`BROKER_TIMEOUT`]).
-fn wait_listening(broker: &mut std::process::Child, exe: &Path) -> Result<u16, Error> {
-    let since = Instant::now();
-    loop {
-        if let Some(port) = crate::listen::port_of(broker.id()) {
-            return Ok(port);
-        }
-        if let Ok(Some(status)) = broker.try_wait() {
-            return err(format!("{} ended at once ({status})", exe.display()));
-        }
-        if let Some(signal) = crate::interrupt::requested() {
-            return err(format!(
-                "stopped by signal {signal} while the broker started"
-            ));
-        }
-        if since.elapsed() > BROKER_TIMEOUT {
-            return err(format!(
-                "{} does not listen on 127.0.0.1 after {} s",
-                exe.display(),
-                BROKER_TIMEOUT.as_secs()
-            ));
-        }
-        std::thread::sleep(Duration::from_millis(10));
-    }
-}
-
-/// Run the system as a federation on this machine: `helics_broker` on loopback, one
-/// `exe federate` process per group, their CSVs merged into `o.out` in the master's column order.
-pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationReport, Error> {
-    use std::process::Stdio;
-    let lib = find_library(o.helics_lib.as_deref())?;
-    let broker_exe = find_broker(&lib)?;
-    let package = ssp::read(&o.system)?;
-    let names = component_names(&package);
-    let feds = groups(&names, o.groups.as_deref())?;
-    let order = System::builder(&package).load()?.columns();
-    let out = o.out.clone().unwrap_or_else(|| {
-        PathBuf::from(format!(
-            "{}.csv",
-            o.system
-                .file_stem()
-                .and_then(|s| s.to_str())
-                .unwrap_or("system")
-        ))
-    });
-    let dir = o.work_dir.clone().unwrap_or_else(|| {
-        let mut d = out.as_os_str().to_owned();
-        d.push(".federates");
-        PathBuf::from(d)
-    });
-    std::fs::create_dir_all(&dir)
-        .map_err(|e| Error::Federation(format!("{}: {e}", dir.display())))?;
-    let core = o.core.as_deref().unwrap_or(DEFAULT_CORE);
-    let started = Instant::now();
-    let coordination = o.timing.unwrap_or(Timing::for_federates(feds.len()));
-    let mut broker = start_broker(&broker_exe, core, feds.len(), coordination)?;
-    let port = match wait_listening(&mut broker, &broker_exe) {
-        Ok(p) => p,
-        Err(e) => {
-            stop(&mut broker);
-            return Err(e);
-        }
-    };
-    let address = format!("127.0.0.1:{port}");
-    let mut timing = vec!["--core".to_owned(), core.to_owned()];
-    if let Some(s) = o.opts.stop {
-        timing.extend(["--stop".to_owned(), s.to_string()]);
-    }
-    if let Some(s) = o.opts.step {
-        timing.extend(["--step".to_owned(), s.to_string()]);
-    }
-    let mut children = Vec::new();
-    let mut parts = Vec::new();
-    let mut commands = vec![format!(
-        "{} -f {} --coretype={core} {} --local_interface=tcp://BROKER_HOST --port={port}",
-        broker_exe.display(),
-        feds.len(),
-        coordination.flags().join(" ")
-    )];
-    let mut failure = None;
-    for (k, g) in feds.iter().enumerate() {
-        let name = format!("fed{k}");
-        let csv = dir.join(format!("{name}.csv"));
-        let args = |broker: &str, csv: &Path| -> Vec<String> {
-            let mut a = vec![
-                "federate".to_owned(),
-                o.system.display().to_string(),
-                "--component".to_owned(),
-                g.join(","),
-                "--broker".to_owned(),
-                broker.to_owned(),
-                "--name".to_owned(),
-                name.clone(),
-                "--out".to_owned(),
-                csv.display().to_string(),
-                "--helics-lib".to_owned(),
-                lib.display().to_string(),
-            ];
-            a.extend(timing.iter().cloned());
-            a
-        };
-        commands.push(format!(
-            "{} {}",
-            exe.display(),
-            args(
-                &format!("BROKER_HOST:{port}"),
-                Path::new(&format!("{name}.csv"))
-            )
-            .join(" ")
-        ));
-        match child(exe)
-            .args(args(&address, &csv))
-            .stdout(Stdio::piped())
-            .spawn()
-        {
-            Ok(c) => children.push(c),
-            Err(e) => {
-                failure = Some(Error::Federation(format!(
-                    "cannot start {}: {e}",
-                    exe.display()
-                )));
-                break;
-            }
-        }
-        parts.push(csv);
-    }
-    // Wait for every federate; when one fails, the others would wait for it: stop them.
-    let mut summaries = vec![String::new(); children.len()];
-    let mut running: Vec<Option<std::process::Child>> = children.into_iter().map(Some).collect();
-    while failure.is_none() && running.iter().any(Option::is_some) {
-        if let Some(signal) = crate::interrupt::requested() {
-            failure = Some(Error::Federation(format!(
-                "stopped by signal {signal}: the broker and the federates were stopped"
-            )));
-            break;
-        }
-        for k in 0..running.len() {
-            let Some(c) = running[k].as_mut() else {
-                continue;
-            };
-            match c.try_wait() {
-                Ok(None) => continue,
-                Ok(Some(status)) if status.success() => {
-                    let c = running[k].take().expect("running");
-                    if let Ok(out) = c.wait_with_output() {
-                        summaries[k] = String::from_utf8_lossy(&out.stdout)
-                            .lines()
-                            .last()
-                            .unwrap_or("")
-                            .to_owned();
-                    }
-                }
-                Ok(Some(status)) => {
-                    running[k] = None;
-                    failure = Some(Error::Federation(format!(
-                        "federate fed{k} ({}) failed ({status}); the others were stopped",
-                        feds[k].join(",")
-                    )));
-                }
-                Err(e) => failure = Some(Error::Federation(format!("federate fed{k}: {e}"))),
-            }
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    for c in running.iter_mut().flatten() {
-        stop(c);
-    }
-    if failure.is_some() {
-        // The broker waits for federates that never came: stop it (it is our child).
-        stop(&mut broker);
-    }
-    let _ = broker.wait();
-    let wall = started.elapsed();
-    if let Some(e) = failure {
-        return Err(e);
-    }
-    let rows = merge(&parts, &order, &out)?;
-    Ok(FederationReport {
-        federates: feds,
-        rows,
-        wall,
-        summaries,
-        commands,
-    })
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn names(v: &[&str]) -> Vec<String> {
-        v.iter().map(|s| s.to_string()).collect()
-    }
-
-    #[test]
-    fn groups_cover_every_component_once() {
-        let all = names(&["grid", "operator", "wind", "pv", "bess"]);
-        let g = groups(&all, Some("grid,operator; wind ,pv")).unwrap();
-        assert_eq!(
-            g,
-            vec![
-                names(&["grid", "operator"]),
-                names(&["wind", "pv"]),
-                names(&["bess"])
-            ]
-        );
-        assert_eq!(groups(&all, None).unwrap().len(), 5);
-        assert!(groups(&all, Some("grid;grid"))
-            .unwrap_err()
-            .to_string()
-            .contains("two groups"));
-        assert!(groups(&all, Some("nosuch"))
-            .unwrap_err()
-            .to_string()
-            .contains("'nosuch'"));
-    }
-
-    #[test]
-    fn csv_fields_keep_quoted_commas() {
-        assert_eq!(fields("time,\"a,b\",c"), vec!["time", "\"a,b\"", "c"]);
-        assert_eq!(unquote("\"a,\"\"b\"\"\""), "a,\"b\"");
-        assert_eq!(unquote("grid.pcc.f"), "grid.pcc.f");
-    }
 
     #[test]
     fn a_missing_library_is_named() {

@@ -93,10 +93,21 @@ pub(crate) fn direct_plan(order: &[usize]) -> Vec<Vec<Event>> {
 
 /// A parameter binding, resolved: the unit, the parameter's name, its variable and value.
 pub(crate) struct Parameter {
-    pub(crate) unit: usize,
-    pub(crate) name: String,
-    pub(crate) var: Var,
-    pub(crate) value: Value,
+    unit: usize,
+    name: String,
+    var: Var,
+    value: Value,
+}
+
+impl Parameter {
+    pub(crate) fn new(unit: usize, name: String, var: Var, value: Value) -> Parameter {
+        Parameter {
+            unit,
+            name,
+            var,
+            value,
+        }
+    }
 }
 
 /// The most exchanges initialization repeats before it gives up.

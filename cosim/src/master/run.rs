@@ -54,7 +54,7 @@ impl Builder<'_> {
             system.stepping_threads(),
         );
         let mut builtin = None;
-        let algorithm: &mut dyn Algorithm = match self.algorithm.take() {
+        let algorithm: &mut dyn Algorithm = match self.take_algorithm() {
             Some(a) => a,
             None => &mut **builtin.insert(opts.algorithm.algorithm()),
         };
@@ -135,7 +135,7 @@ impl System {
     ) -> Result<(End, u64, f64), Error> {
         let (start, stop, step) = self.experiment(opts)?;
         let threads = self.stepping_threads();
-        self.advance_time = std::time::Duration::ZERO;
+        self.set_advance_time(std::time::Duration::ZERO);
         let pool = if threads > 1 {
             let pool = Pool::new(threads)
                 .map_err(|e| Error::Run(format!("cannot start {threads} stepping threads: {e}")))?;
@@ -208,7 +208,7 @@ impl System {
         algorithm.start(&mut Coupling::new(self))?;
         let started = std::time::Instant::now();
         let result = self.advance(span, algorithm, observers, tally);
-        self.advance_time = started.elapsed();
+        self.set_advance_time(started.elapsed());
         if let Some(report) = algorithm.finish(&mut Coupling::new(self)) {
             eprintln!("cosim: {report}");
         }

@@ -41,10 +41,10 @@ impl<'a> From<&'a ssp::Package> for Source<'a> {
 /// How to load a system and run it: `System::builder(path).threads(2).load()`, or
 /// `.run(&opts, &mut observers)` to load and run it in one go.
 pub struct Builder<'a> {
-    pub(super) source: Source<'a>,
+    source: Source<'a>,
     sharing: Sharing,
     threads: usize,
-    pub(super) algorithm: Option<&'a mut dyn Algorithm>,
+    algorithm: Option<&'a mut dyn Algorithm>,
 }
 
 impl<'a> Builder<'a> {
@@ -69,6 +69,11 @@ impl<'a> Builder<'a> {
     pub fn algorithm(mut self, algorithm: &'a mut dyn Algorithm) -> Self {
         self.algorithm = Some(algorithm);
         self
+    }
+
+    /// The algorithm given to [`Builder::algorithm`], taken (once).
+    pub(super) fn take_algorithm(&mut self) -> Option<&'a mut dyn Algorithm> {
+        self.algorithm.take()
     }
 
     /// Load every component's FMU, resolve the connections and check the parameter bindings.
@@ -105,7 +110,7 @@ pub struct System {
     /// Threads asked for (see [`Builder::threads`]).
     threads: usize,
     /// Wall time of the last run after initialization: its steps and samples.
-    pub(super) advance_time: std::time::Duration,
+    advance_time: std::time::Duration,
 }
 
 impl System {
@@ -250,6 +255,10 @@ impl System {
     /// run costs per step, loading and initialization aside.
     pub fn advance_time(&self) -> std::time::Duration {
         self.advance_time
+    }
+
+    pub(super) fn set_advance_time(&mut self, t: std::time::Duration) {
+        self.advance_time = t;
     }
 
     /// The number of components.
@@ -435,12 +444,7 @@ fn bind(sys: &ssp::System, units: &[Unit]) -> Result<Vec<Parameter>, Error> {
                     var.ty()
                 )));
             }
-            parameters.push(Parameter {
-                unit: u,
-                name: p.name.clone(),
-                var,
-                value: p.value.clone(),
-            });
+            parameters.push(Parameter::new(u, p.name.clone(), var, p.value.clone()));
         }
     }
     Ok(parameters)

@@ -557,7 +557,7 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     step.grant_for(&system, &mine);
     let links = system.core().links();
     if std::env::var_os("COSIM_SCHEDULE").is_some() {
-        for (j, r) in step.rounds.iter().enumerate() {
+        for (j, r) in step.rounds().iter().enumerate() {
             for e in r {
                 let (Event::Local(i) | Event::Produce(i) | Event::Consume(i)) = *e;
                 eprintln!("round {j}: {e:?} {}", links[i].label());
@@ -567,8 +567,10 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
     let ends = links.iter().map(|l| (l.src(), l.slot(), l.dst())).collect();
     let (start, stop, h) = system.experiment(&o.opts)?;
     let load_time = started.elapsed();
-    let init_rounds = init.rounds.len();
-    let step_rounds = step.granted[1..].iter().filter(|&&g| g).count().max(1);
+    let init_rounds = init.rounds().len();
+    let step_rounds = step.grants();
+    let (init_plan, init_receive, init_granted) = init.into_parts();
+    let (step_plan, step_receive, step_granted) = step.into_parts();
 
     // The federate and its interfaces.
     let core = o.core.as_deref().unwrap_or(DEFAULT_CORE);
@@ -586,11 +588,11 @@ pub fn run_federate(o: &FederateOptions) -> Result<FederateReport, Error> {
         buf: vec![0.0; system.core().links().len()],
         mine,
         ends,
-        receive: [init.receive, step.receive],
-        granted: [init.granted, step.granted],
+        receive: [init_receive, step_receive],
+        granted: [init_granted, step_granted],
         init_passes: 0,
     };
-    let plans: Plans = [init.rounds, step.rounds];
+    let plans: Plans = [init_plan, step_plan];
     // One vector per component that another component reads (see [`Pack`]).
     for (u, at) in packed_slots(&system) {
         let name = cstring(system.core().units()[u].name())?;

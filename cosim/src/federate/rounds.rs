@@ -10,16 +10,32 @@ use std::collections::{BTreeMap, BTreeSet};
 /// connections whose value arrives (is taken from HELICS) at the start of each round.
 #[derive(Debug, Default)]
 pub(super) struct Schedule {
-    pub(super) rounds: Vec<Vec<Event>>,
-    pub(super) receive: Vec<Vec<usize>>,
+    rounds: Vec<Vec<Event>>,
+    receive: Vec<Vec<usize>>,
     /// The rounds this federate must be granted: those in which it takes a value from or
     /// publishes one to another federate, and the last (so that no publication of the next
     /// exchange overtakes a read of this one). It skips the others: a round costs a message
     /// only from the federates that take part in it.
-    pub(super) granted: Vec<bool>,
+    granted: Vec<bool>,
 }
 
 impl Schedule {
+    /// The events of each round.
+    pub(super) fn rounds(&self) -> &[Vec<Event>] {
+        &self.rounds
+    }
+
+    /// The HELICS time grants of an exchange for this federate (at least one: the federates
+    /// go in step).
+    pub(super) fn grants(&self) -> usize {
+        self.granted[1..].iter().filter(|&&g| g).count().max(1)
+    }
+
+    /// The rounds, the connections arriving at the start of each round, the rounds granted.
+    pub(super) fn into_parts(self) -> (Vec<Vec<Event>>, Vec<Vec<usize>>, Vec<bool>) {
+        (self.rounds, self.receive, self.granted)
+    }
+
     /// Mark the rounds a federate of the units `mine` must be granted ([`Schedule::granted`]).
     pub(super) fn grant_for(&mut self, sys: &System, mine: &[bool]) {
         let links = sys.core().links();

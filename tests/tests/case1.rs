@@ -9,8 +9,9 @@ use dvpp_report::casestudy::{max_gap, peak, Signals};
 use fmu_der::ports;
 
 fn run(name: &str) -> (Signals, dvpp_cosim::Table) {
-    let table =
-        master::simulate(&scenario(name), &Options::default()).unwrap_or_else(|e| panic!("{e}"));
+    let table = master::System::builder(&scenario(name))
+        .simulate(&Options::default())
+        .unwrap_or_else(|e| panic!("{e}"));
     let signals = Signals::of(&table).unwrap_or_else(|e| panic!("{name}: {e}"));
     // The metrics find the DERs by their `v_dc` columns: all of the scenario's, in slot order.
     let units = der_units(&scenario(name)).unwrap_or_else(|e| panic!("{name}: {e}"));

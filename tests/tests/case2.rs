@@ -37,7 +37,8 @@ fn every_grid_forming_share_matches_t_des_without_step_to_step_oscillation() {
     let mut rocof = Vec::new();
     for eps in EPS {
         let name = format!("case2_load_eps{eps}");
-        let t = master::simulate(&scenario(&name), &Options::default())
+        let t = master::System::builder(&scenario(&name))
+            .simulate(&Options::default())
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let signals = Signals::of(&t).unwrap_or_else(|e| panic!("{e}"));
         let units = units_of(&name, &t, ports::I_AC);
@@ -112,7 +113,8 @@ fn every_grid_forming_share_matches_t_des_without_step_to_step_oscillation() {
 fn the_outage_settles_with_grid_forming_units_and_loses_synchronism_without() {
     for eps in EPS {
         let name = format!("case2_outage_eps{eps}");
-        let t = master::simulate(&scenario(&name), &Options::default())
+        let t = master::System::builder(&scenario(&name))
+            .simulate(&Options::default())
             .unwrap_or_else(|e| panic!("{name}: {e}"));
         let time = column(&t, "time");
         assert!(

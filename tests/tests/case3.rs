@@ -42,7 +42,8 @@ const S_DVPP: f64 = 96.0;
 
 /// `name` run in our master.
 fn run(name: &str) -> Measured {
-    let t = master::simulate(&scenario(name), &Options::default())
+    let t = master::System::builder(&scenario(name))
+        .simulate(&Options::default())
         .unwrap_or_else(|e| panic!("{name}: {e}"));
     let r = column(&t, "operator.ref.df");
     let last = r.len() - 1;

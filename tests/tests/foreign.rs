@@ -1,12 +1,17 @@
 //! Foreign FMUs (plain C in tests/foreign/, not built with fmi-export): alone, and as SSP systems run by our master.
 
-use dvpp_cosim::master::{self, simulate, Options, Scheme as Algorithm};
+use dvpp_cosim::master::{Error, Options, Scheme as Algorithm, System};
 use dvpp_cosim::Table;
 use dvpp_cosim::{Fmu, Instance, Status};
 use dvpp_e2e::foreign::{build_foreign, foreign_dir, system, MODELS};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::sync::{Arc, OnceLock};
+
+/// The system at `path` simulated to its end, every output in memory.
+fn simulate(path: &Path, opts: &Options) -> Result<Table, Error> {
+    System::builder(path).simulate(opts)
+}
 
 /// The built FMUs and both forms of each system, made once per test process.
 struct Built {
@@ -254,13 +259,13 @@ fn step_lag_as_ssp_archive_equals_the_directory_form() {
 }
 
 /// The master runs an algebraic loop broken at one connection and reports it as a warning
-/// (`master::run`'s `Outcome::warnings`); the report must name both gains and say "loop" or
+/// (`Builder::run`'s `Outcome::warnings`); the report must name both gains and say "loop" or
 /// "cycle". Both algorithms order the exchange by feedthrough, so both must see the loop.
 #[test]
 fn algebraic_loop_is_reported() {
     for algorithm in [Algorithm::GaussSeidel, Algorithm::Jacobi] {
         // Documented behaviour: the loop is reported as a warning and broken, the run goes on.
-        let report = match master::run(&built().loop_dir, &options(algorithm), &mut []) {
+        let report = match System::builder(&built().loop_dir).run(&options(algorithm), &mut []) {
             Err(e) => panic!("{algorithm:?}: the loop should be broken, not fatal: {e}"),
             Ok(outcome) => outcome.warnings.join("\n"),
         };

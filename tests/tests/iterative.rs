@@ -14,7 +14,9 @@ fn pcc_v(h: f64, algorithm: &mut dyn master::Algorithm) -> Vec<f64> {
         ..Options::default()
     };
     let mut rec = Recorder::default();
-    let outcome = master::run_with(&scenario("case1_load"), &opts, algorithm, &mut [&mut rec])
+    let outcome = master::System::builder(&scenario("case1_load"))
+        .algorithm(algorithm)
+        .run(&opts, &mut [&mut rec])
         .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(outcome.end, End::Completed);
     rec.table.column("grid.pcc.v").expect("grid.pcc.v")
@@ -56,8 +58,10 @@ fn units_that_cannot_roll_back_are_refused() {
         step: Some(1e-3),
         ..Options::default()
     };
-    let outcome =
-        master::run_with(&dir, &opts, &mut Iterative::new(), &mut []).expect("the system loads");
+    let outcome = master::System::builder(&dir)
+        .algorithm(&mut Iterative::new())
+        .run(&opts, &mut [])
+        .expect("the system loads");
     match outcome.end {
         End::Failed { error, .. } => {
             assert!(

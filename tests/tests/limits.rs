@@ -1,7 +1,7 @@
 //! Converter limits end to end in our master: severe events (a 250 MW load step, a trip of SG1,
 //! a trip of SG1 and SG3) keep every unit within its current limit and its dc link within its
 //! range, each unit's energy account closes, and a run with no operating point left stops with
-//! a one-line cause and its trajectory kept.
+//! a one-line cause and its trajectory kept; an experiment that cannot run is refused as such.
 
 use dvpp_cosim::master::{self, Options, Recorder};
 use dvpp_cosim::Table;
@@ -17,7 +17,8 @@ fn column(t: &Table, name: &str) -> Vec<f64> {
 /// The run's rows (all of them, or those up to a failure) and its outcome.
 fn run(name: &str) -> (Table, Result<master::Outcome, master::Error>) {
     let mut recorder = Recorder::default();
-    let outcome = master::run(&scenario(name), &Options::default(), &mut [&mut recorder]);
+    let outcome =
+        master::System::builder(&scenario(name)).run(&Options::default(), &mut [&mut recorder]);
     (recorder.table, outcome)
 }
 
@@ -166,4 +167,19 @@ fn a_grid_with_no_operating_point_left_stops_with_its_cause_and_keeps_the_trajec
     let end = *time.last().expect("rows kept");
     assert!(end > 1.0, "the trajectory stops at t = {end} s");
     check_units("limits_sg13_trip", &t);
+}
+
+/// An experiment that cannot run is refused as an experiment error before the run starts.
+#[test]
+fn an_experiment_that_cannot_run_is_an_experiment_error() {
+    let opts = Options {
+        step: Some(-1e-3),
+        ..Options::default()
+    };
+    match master::System::builder(&scenario("case1_load")).run(&opts, &mut []) {
+        Err(e @ master::Error::Experiment(_)) => {
+            assert!(e.to_string().contains("step size -0.001 s"), "{e}")
+        }
+        other => panic!("an experiment error expected: {other:?}"),
+    }
 }

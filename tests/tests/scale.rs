@@ -2,29 +2,26 @@
 //! thread bit for bit, and components with identical binaries run in one loaded library while
 //! each reads its own resources.
 
-use dvpp_cosim::master::{self, Execution, Iterative, Jacobi, Options, Recorder, Sharing, System};
+use dvpp_cosim::master::{self, Iterative, Jacobi, Options, Recorder, Sharing, System};
 use dvpp_cosim::{ssp, Table};
 use dvpp_e2e::{cosim, scenario};
 use std::path::Path;
 use std::process::Command;
 
-/// `case1_load` to `stop` s with `algorithm` on `exec`, every output in memory.
-fn run(stop: f64, exec: Execution, algorithm: &mut dyn master::Algorithm) -> Table {
+/// `case1_load` to `stop` s with `algorithm` on `threads` threads, every output in memory.
+fn run(stop: f64, threads: usize, algorithm: &mut dyn master::Algorithm) -> Table {
     let opts = Options {
         stop: Some(stop),
         ..Options::default()
     };
     let mut rec = Recorder::default();
-    let outcome = master::run_on(
-        &scenario("case1_load"),
-        &opts,
-        &exec,
-        algorithm,
-        &mut [&mut rec],
-    )
-    .unwrap_or_else(|e| panic!("{e}"));
+    let outcome = System::builder(&scenario("case1_load"))
+        .threads(threads)
+        .algorithm(algorithm)
+        .run(&opts, &mut [&mut rec])
+        .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(outcome.end, master::End::Completed);
-    assert_eq!(outcome.threads, exec.threads.min(outcome.units));
+    assert_eq!(outcome.threads, threads.min(outcome.units));
     rec.table
 }
 
@@ -46,20 +43,20 @@ fn assert_bit_identical(a: &Table, b: &Table, what: &str) {
 
 #[test]
 fn two_threads_give_the_results_of_one_bit_for_bit() {
-    let one = run(20.0, Execution::threads(1), &mut Jacobi);
-    let two = run(20.0, Execution::threads(2), &mut Jacobi);
+    let one = run(20.0, 1, &mut Jacobi);
+    let two = run(20.0, 2, &mut Jacobi);
     assert_eq!(one.rows.len(), 20_001);
     assert_bit_identical(&one, &two, "Jacobi, 2 threads");
     // More threads than units: one per unit.
-    let many = run(2.0, Execution::threads(16), &mut Jacobi);
+    let many = run(2.0, 16, &mut Jacobi);
     let head = Table {
         columns: one.columns.clone(),
         rows: one.rows[..many.rows.len()].to_vec(),
     };
     assert_bit_identical(&head, &many, "Jacobi, 16 threads");
     // Iterative coupling steps its attempts on the threads too (over the load step).
-    let one = run(1.05, Execution::threads(1), &mut Iterative::new());
-    let two = run(1.05, Execution::threads(2), &mut Iterative::new());
+    let one = run(1.05, 1, &mut Iterative::new());
+    let two = run(1.05, 2, &mut Iterative::new());
     assert_bit_identical(&one, &two, "iterative, 2 threads");
 }
 
@@ -98,7 +95,9 @@ fn cosim_threads_flag_writes_the_same_csv() {
 #[test]
 fn identical_binaries_share_one_library_each_with_its_own_resources() {
     let package = ssp::read(&scenario("case1_load")).unwrap_or_else(|e| panic!("{e}"));
-    let shared = System::load(&package).unwrap_or_else(|e| panic!("{e}"));
+    let shared = System::builder(&package)
+        .load()
+        .unwrap_or_else(|e| panic!("{e}"));
     let fmu = |s: &System, name: &str| s.fmu(name).expect(name).clone();
     let (wind, pv, bess) = (
         fmu(&shared, "wind"),
@@ -120,7 +119,10 @@ fn identical_binaries_share_one_library_each_with_its_own_resources() {
     drop((wind, pv, bess, grid, operator));
 
     // Loaded separately, every component has its own library, and the results are the same.
-    let separate = System::load_with(&package, Sharing::Separate).unwrap_or_else(|e| panic!("{e}"));
+    let separate = System::builder(&package)
+        .sharing(Sharing::Separate)
+        .load()
+        .unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(separate.libraries(), 5);
     let wind_sep = fmu(&separate, "wind");
     assert!(!wind_sep.shares_library_with(&fmu(&shared, "wind")));

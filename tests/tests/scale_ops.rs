@@ -58,7 +58,8 @@ fn column(t: &Table, name: &str) -> Vec<f64> {
 fn run(name: &str) -> Table {
     let mut keep = Keep::default();
     let started = Instant::now();
-    let outcome = master::run(&scenario(name), &Options::default(), &mut [&mut keep])
+    let outcome = master::System::builder(&scenario(name))
+        .run(&Options::default(), &mut [&mut keep])
         .unwrap_or_else(|e| panic!("{name}: {e}"));
     println!(
         "{name}: {} rows in {:.1} s",

@@ -102,7 +102,8 @@ fn measure(run: &mut Run, t: &Table) -> Result<(), String> {
 
 /// Run `pkg` and measure it into `run`.
 fn simulate(pkg: &ssp::Package, run: &mut Run) {
-    let table = master::System::load(pkg)
+    let table = master::System::builder(pkg)
+        .load()
         .and_then(|mut s| {
             s.quiet();
             s.simulate_recording(

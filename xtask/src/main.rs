@@ -487,12 +487,12 @@ fn demo() -> Result {
             Progress::default(),
             Select::new(Recorder::default(), Record::system_default()),
         );
-        let outcome = master::run(
-            &ssp,
-            &Options::default(),
-            &mut [&mut writer, &mut progress, &mut recorder],
-        )
-        .map_err(|e| format!("{name}: {e}"))?;
+        let outcome = master::System::builder(&ssp)
+            .run(
+                &Options::default(),
+                &mut [&mut writer, &mut progress, &mut recorder],
+            )
+            .map_err(|e| format!("{name}: {e}"))?;
         if outcome.end != master::End::Completed {
             return Err(format!("{name}: {:?}", outcome.end));
         }

@@ -166,7 +166,9 @@ fn run(root: &Path) -> Result<Vec<Verdict>, String> {
                 let table = dvpp_cosim::ssp::read(&path)
                     .map_err(|e| format!("{name}: {e}"))
                     .and_then(|pkg| {
-                        let mut sys = master::System::load(&pkg).map_err(|e| e.to_string())?;
+                        let mut sys = master::System::builder(&pkg)
+                            .load()
+                            .map_err(|e| e.to_string())?;
                         sys.quiet();
                         sys.simulate_recording(
                             &Options {

@@ -234,7 +234,8 @@ fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, Stri
                     algorithm: Scheme::Jacobi,
                 };
                 let table = prepare(base, &job).and_then(|pkg| {
-                    master::System::load(&pkg)
+                    master::System::builder(&pkg)
+                        .load()
                         .and_then(|mut s| {
                             s.quiet();
                             s.simulate_recording(&opts, Record::system_default())

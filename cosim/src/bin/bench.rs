@@ -18,7 +18,7 @@
 mod scale;
 
 use dvpp_cosim::master::{
-    self, CsvWriter, End, Execution, MatWriter, Observer, Options, Record, Scheme, Select,
+    self, CsvWriter, End, MatWriter, Observer, Options, Record, Scheme, Select,
 };
 use dvpp_cosim::{Fmu, Status};
 use model_description::BaseType;
@@ -121,8 +121,9 @@ fn macro_step(
         algorithm: scheme,
         ..Options::default()
     };
-    let exec = Execution::threads(threads);
-    let outcome = master::run_on(path, &opts, &exec, &mut *scheme.algorithm(), observers)
+    let outcome = master::System::builder(path)
+        .threads(threads)
+        .run(&opts, observers)
         .map_err(|e| e.to_string())?;
     if outcome.end != End::Completed {
         return Err(format!("{}: {:?}", path.display(), outcome.end));

@@ -2,8 +2,8 @@
 
 use dvpp_cosim::federate::{self, FederateOptions, FederationOptions};
 use dvpp_cosim::master::{
-    self, partial_path, CsvWriter, End, Execution, MatWriter, Observer, Options, Progress, Record,
-    Recorder, Scheme, Select,
+    self, partial_path, CsvWriter, End, MatWriter, Observer, Options, Progress, Record, Recorder,
+    Scheme, Select, System,
 };
 use dvpp_cosim::{interrupt, Table};
 use dvpp_report::plot::{Figure, Panel, Style};
@@ -65,7 +65,8 @@ struct Args {
     out: Option<PathBuf>,
     no_csv: bool,
     iterative: master::Iterative,
-    exec: Execution,
+    /// Threads stepping the units (0: the default, one).
+    threads: usize,
     plot: Option<PathBuf>,
     signals: Vec<String>,
     record: Record,
@@ -156,7 +157,7 @@ fn parse() -> Result<Args, String> {
             "--relaxation" => args.iterative.relaxation = number("--relaxation", it.next())?,
             "--threads" => {
                 let v = it.next().ok_or("--threads needs a number or 'all'")?;
-                args.exec.threads = if v == "all" {
+                args.threads = if v == "all" {
                     std::thread::available_parallelism().map_or(1, |n| n.get())
                 } else {
                     v.parse().ok().filter(|n| *n > 0).ok_or(format!(
@@ -308,13 +309,11 @@ fn main() -> ExitCode {
     } else {
         &mut *builtin
     };
-    let outcome = match master::run_on(
-        &args.system,
-        &args.opts,
-        &args.exec,
-        algorithm,
-        &mut observers,
-    ) {
+    let outcome = match System::builder(&args.system)
+        .threads(args.threads)
+        .algorithm(algorithm)
+        .run(&args.opts, &mut observers)
+    {
         Ok(o) => o,
         Err(e) => {
             eprintln!("cosim: {e}");

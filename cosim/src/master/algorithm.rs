@@ -1,6 +1,6 @@
 //! Co-simulation algorithms: how the units advance over one communication step.
 
-use super::{Coupling, Error};
+use super::{Error, System};
 use crate::fmu::SavedState;
 
 /// Advances every unit of a system over one communication step and leaves the connections
@@ -20,8 +20,95 @@ pub trait Algorithm {
     }
 }
 
+/// What an [`Algorithm`] may do with a loaded system during a communication step.
+pub struct Coupling<'a> {
+    system: &'a mut System,
+}
+
+impl<'a> Coupling<'a> {
+    pub(super) fn new(system: &'a mut System) -> Coupling<'a> {
+        Coupling { system }
+    }
+}
+
+impl Coupling<'_> {
+    /// The number of units.
+    pub fn units(&self) -> usize {
+        self.system.units()
+    }
+
+    /// `fmi2DoStep` of unit `k` from `t` by `h` (ticks); its outputs are read again when needed.
+    pub fn do_step(&mut self, k: usize, t: i64, h: i64) -> Result<(), Error> {
+        self.system.core_mut().do_step(k, t, h)
+    }
+
+    /// `fmi2DoStep` of every unit from `t` by `h` (ticks), all from the inputs they hold, each
+    /// followed by the reading of the unit's outputs, on the system's threads (see
+    /// [`super::Builder::threads`]). Every unit is stepped; then the statuses are checked in
+    /// SSD order (the first failing unit is reported, the logs handled in that order), so the
+    /// results, messages and warnings do not depend on the number of threads.
+    pub fn step_all(&mut self, t: i64, h: i64) -> Result<(), Error> {
+        self.system.core_mut().step_all(t, h)
+    }
+
+    /// Threads [`Coupling::step_all`] steps the units on.
+    pub fn threads(&self) -> usize {
+        self.system.core().threads()
+    }
+
+    /// Move every connection's value (dependency order) and set the changed inputs.
+    pub fn exchange(&mut self) -> Result<(), Error> {
+        self.system.exchange()
+    }
+
+    /// The units in dependency order: a unit after the units feeding it, cycles in SSD order.
+    pub fn dependency_order(&self) -> &[usize] {
+        self.system.unit_order()
+    }
+
+    /// The value each connection carried at its last exchange, in SSD order, into `out`.
+    pub fn connection_values(&self, out: &mut Vec<f64>) {
+        self.system.core().connection_values(out);
+    }
+
+    /// The components whose FMU cannot save and restore its state
+    /// (`canGetAndSetFMUstate` false).
+    pub fn without_state(&self) -> Vec<&str> {
+        self.system
+            .core()
+            .units()
+            .iter()
+            .filter(|u| !u.can_save_state())
+            .map(|u| u.name())
+            .collect()
+    }
+
+    /// Save every unit's state into `states` (made on the first call, overwritten after).
+    pub fn save(&mut self, states: &mut Vec<SavedState>) -> Result<(), Error> {
+        self.system.core_mut().save(states)
+    }
+
+    /// Restore every unit from `states` (as saved by [`Coupling::save`]) and mark every
+    /// connection unsent, so that the next exchange sets every input again (a restored FMU holds
+    /// the inputs it had when saved).
+    pub fn restore(&mut self, states: &[SavedState]) -> Result<(), Error> {
+        self.system.core_mut().restore(states)
+    }
+
+    /// Set every connection's destination input to `values` (in SSD order, as
+    /// [`Coupling::connection_values`] gives them) without reading any output.
+    pub fn set_inputs(&mut self, values: &[f64]) -> Result<(), Error> {
+        self.system.core_mut().set_inputs(values)
+    }
+
+    /// Free the states saved by [`Coupling::save`].
+    pub fn free(&mut self, states: &mut Vec<SavedState>) {
+        self.system.core_mut().free(states);
+    }
+}
+
 /// All units step from the same exchanged inputs (on the system's threads, see
-/// [`super::System::set_threads`]), then one exchange.
+/// [`super::Builder::threads`]), then one exchange.
 #[derive(Debug, Default, Clone, Copy)]
 pub struct Jacobi;
 
@@ -123,23 +210,25 @@ impl Algorithm for Iterative {
     fn start(&mut self, system: &mut Coupling<'_>) -> Result<(), Error> {
         let without = system.without_state();
         if !without.is_empty() {
-            return Err(Error(format!(
+            return Err(Error::Algorithm(format!(
                 "the iterative algorithm rolls steps back with fmi2GetFMUstate/fmi2SetFMUstate, \
                  which {} cannot do (canGetAndSetFMUstate is false); use jacobi or gauss-seidel",
                 without.join(", ")
             )));
         }
         if !(self.rtol >= 0.0 && self.atol >= 0.0 && self.rtol + self.atol > 0.0) {
-            return Err(Error(format!(
+            return Err(Error::Algorithm(format!(
                 "iterative algorithm: tolerances rtol = {}, atol = {} must be non-negative and not both 0",
                 self.rtol, self.atol
             )));
         }
         if self.max_iterations == 0 {
-            return Err(Error("iterative algorithm: at least one iteration".into()));
+            return Err(Error::Algorithm(
+                "iterative algorithm: at least one iteration".into(),
+            ));
         }
         if !(self.relaxation > 0.0 && self.relaxation <= 1.0) {
-            return Err(Error(format!(
+            return Err(Error::Algorithm(format!(
                 "iterative algorithm: relaxation {} must be in (0, 1]",
                 self.relaxation
             )));
@@ -165,7 +254,7 @@ impl Algorithm for Iterative {
             }
             if attempts == self.max_iterations {
                 self.unconverged += 1;
-                let at = super::seconds(t);
+                let at = crate::table::seconds(t);
                 if self.worst.is_none_or(|(m, _)| misfit > m) {
                     self.worst = Some((misfit, at));
                 }

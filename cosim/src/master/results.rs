@@ -255,7 +255,7 @@ impl<F: Format + Send + 'static> ResultWriter<F> {
     }
 
     fn io(&self, e: std::io::Error) -> Error {
-        Error(format!("{}: {e}", self.partial.display()))
+        Error::Output(format!("{}: {e}", self.partial.display()))
     }
 
     /// Hand the current chunk to the writer thread (and take an empty one back); the writer's
@@ -272,22 +272,25 @@ impl<F: Format + Send + 'static> ResultWriter<F> {
         }
         // The chunks circulate: a fresh one only while fewer than CHUNKS + 1 exist, then wait
         // for the writer to hand one back (memory stays bounded, pages stay mapped).
-        let next =
-            match w.empty.try_recv() {
+        let next = match w.empty.try_recv() {
+            Ok(c) => c,
+            Err(_) if self.chunks < CHUNKS + 1 => {
+                self.chunks += 1;
+                Vec::with_capacity(self.chunk.capacity())
+            }
+            Err(_) => match w.empty.recv() {
                 Ok(c) => c,
-                Err(_) if self.chunks < CHUNKS + 1 => {
-                    self.chunks += 1;
-                    Vec::with_capacity(self.chunk.capacity())
+                Err(_) => {
+                    return Err(w
+                        .failed
+                        .lock()
+                        .map_or(None, |f| f.clone())
+                        .unwrap_or_else(|| {
+                            Error::Output(format!("{}: the writer stopped", self.partial.display()))
+                        }))
                 }
-                Err(_) => match w.empty.recv() {
-                    Ok(c) => c,
-                    Err(_) => {
-                        return Err(w.failed.lock().map_or(None, |f| f.clone()).unwrap_or_else(
-                            || Error(format!("{}: the writer stopped", self.partial.display())),
-                        ))
-                    }
-                },
-            };
+            },
+        };
         let full = std::mem::replace(&mut self.chunk, next);
         self.rows += self.chunk_rows as u64;
         self.chunk_rows = 0;
@@ -298,7 +301,7 @@ impl<F: Format + Send + 'static> ResultWriter<F> {
                 .lock()
                 .map_or(None, |f| f.clone())
                 .unwrap_or_else(|| {
-                    Error(format!("{}: the writer stopped", self.partial.display()))
+                    Error::Output(format!("{}: the writer stopped", self.partial.display()))
                 }));
         }
         Ok(())
@@ -307,7 +310,7 @@ impl<F: Format + Send + 'static> ResultWriter<F> {
 
 impl<F: Format> Sink<F> {
     fn io(&self, e: std::io::Error) -> Error {
-        Error(format!("{}: {e}", self.partial.display()))
+        Error::Output(format!("{}: {e}", self.partial.display()))
     }
 
     /// Write the buffered rows. On an error the file keeps only whole rows (cut back to the last
@@ -404,7 +407,7 @@ pub fn partial_path(path: &Path) -> PathBuf {
 impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
     fn start(&mut self, run: &RunInfo) -> Result<(), Error> {
         if self.direct && !F::STREAMS {
-            return Err(Error(format!(
+            return Err(Error::Output(format!(
                 "{}: a .mat result is patched as it grows and needs a regular file, not a device or pipe",
                 self.path.display()
             )));
@@ -412,7 +415,7 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
         let mut format = self
             .format
             .take()
-            .ok_or_else(|| Error(format!("{}: started twice", self.path.display())))?;
+            .ok_or_else(|| Error::Output(format!("{}: started twice", self.path.display())))?;
         let file = if self.direct {
             std::fs::OpenOptions::new().write(true).open(&self.partial)
         } else {
@@ -442,7 +445,7 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
             .name("results".into())
             .spawn(move || sink.run(width, inbox, recycle, flag))
             .map_err(|e| {
-                Error(format!(
+                Error::Output(format!(
                     "cannot start the writer of {}: {e}",
                     self.path.display()
                 ))
@@ -475,7 +478,7 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
         };
         drop(w.chunks);
         let sink = w.thread.join().map_err(|_| {
-            Error(format!(
+            Error::Output(format!(
                 "{}: the writer thread panicked",
                 self.partial.display()
             ))
@@ -488,7 +491,9 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
                 // A failed write left no row: no file either.
                 let _ = std::fs::remove_file(&self.partial);
             }
-            return Err(failure.unwrap_or_else(|| handed.err().unwrap_or(Error(String::new()))));
+            return Err(
+                failure.unwrap_or_else(|| handed.err().unwrap_or(Error::Output(String::new())))
+            );
         };
         if let Some(e) = failure {
             return Err(e);
@@ -507,7 +512,7 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
         }
         if *end == End::Completed {
             std::fs::rename(&self.partial, &self.path).map_err(|e| {
-                Error(format!(
+                Error::Output(format!(
                     "cannot rename {} to {}: {e}",
                     self.partial.display(),
                     self.path.display()
@@ -568,7 +573,7 @@ impl Record {
             || every < 1.0
             || (ratio - every).abs() > 1e-9 * ratio
         {
-            return Err(Error(format!(
+            return Err(Error::Output(format!(
                 "output interval {interval} s is not a whole multiple of the communication step {step} s"
             )));
         }
@@ -646,7 +651,7 @@ impl<O: Observer> Observer for Select<O> {
             .iter()
             .find(|p| !run.columns[1..].iter().any(|c| matches(p, c)));
         if let Some(none) = unmatched.filter(|_| strict) {
-            return Err(Error(format!(
+            return Err(Error::Output(format!(
                 "record pattern '{none}' matches no output of {} (outputs are named component.variable, e.g. {})",
                 run.system,
                 run.columns.get(1).map_or("", String::as_str)
@@ -733,7 +738,7 @@ mod tests {
         let columns: Vec<String> = ["time", "a.p"].map(String::from).to_vec();
         let mut s = Select::new(crate::master::Recorder::default(), Record::parse("grid.*"));
         let e = s.start(&info(&columns)).unwrap_err();
-        assert!(e.0.contains("'grid.*' matches no output"), "{e}");
+        assert!(e.to_string().contains("'grid.*' matches no output"), "{e}");
         let fraction = Record {
             interval: Some(0.0015),
             ..Record::parse("all")
@@ -741,7 +746,7 @@ mod tests {
         let e = Select::new(crate::master::Recorder::default(), fraction)
             .start(&info(&columns))
             .unwrap_err();
-        assert!(e.0.contains("not a whole multiple"), "{e}");
+        assert!(e.to_string().contains("not a whole multiple"), "{e}");
         assert!(Record::parse("all, *.p").is_all());
         // The system's default set may name what a system lacks.
         let default = ["*.p".to_string(), "operator.*".to_string()];
@@ -817,7 +822,7 @@ mod tests {
         assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
         let columns: Vec<String> = ["time", "a.p"].map(String::from).to_vec();
         let e = MatWriter::new(&fifo).start(&info(&columns)).unwrap_err();
-        assert!(e.0.contains("needs a regular file"), "{e}");
+        assert!(e.to_string().contains("needs a regular file"), "{e}");
     }
 
     #[test]

@@ -105,8 +105,11 @@ pub fn child(spec: &str) -> Result<String, String> {
     let steps: u64 = steps.parse().map_err(|_| "bad steps".to_string())?;
     let started = Instant::now();
     let package = ssp::read(Path::new(dir)).map_err(|e| e.to_string())?;
-    let mut system = System::load_with(&package, sharing).map_err(|e| e.to_string())?;
-    system.set_threads(threads);
+    let mut system = System::builder(&package)
+        .sharing(sharing)
+        .threads(threads)
+        .load()
+        .map_err(|e| e.to_string())?;
     let load_s = started.elapsed().as_secs_f64();
     let libraries = system.libraries();
     let opts = Options {

@@ -7,13 +7,13 @@
 //! at initialization), the same draws for both disturbances; the DER and operator keep
 //! `rot.rx` = 1 (the operator does not know the lines).
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::nrmse;
 use dvpp_report::plot::{Figure, Panel, Style};
-use fmu_der::ports;
-use fmu_grid::ports as grid_ports;
+use grid_model::ports as grid_ports;
 use std::path::Path;
 use std::sync::Mutex;
 

@@ -38,11 +38,12 @@ fn table(md: &ModelDescription) -> String {
     out
 }
 
-/// The generated section for the golden descriptions under `root`.
-pub fn section(root: &Path, packages: &[&str]) -> Result<String, String> {
+/// The generated section for the golden descriptions in the model directories `models` under
+/// `root`.
+pub fn section(root: &Path, models: &[&str]) -> Result<String, String> {
     let mut out = format!("{BEGIN}\n");
-    for package in packages {
-        let path = root.join(package).join("modelDescription.xml");
+    for model in models {
+        let path = root.join(model).join("modelDescription.xml");
         let xml = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
         let md = ModelDescription::from_xml(&xml).map_err(|e| e.to_string())?;
         out.push('\n');
@@ -105,10 +106,10 @@ mod tests {
     #[test]
     fn variables_page_lists_the_current_variables() {
         let root = crate::root();
-        let packages: Vec<&str> = crate::FMUS.iter().map(|f| f.package).collect();
+        let models: Vec<&str> = crate::FMUS.iter().map(|f| f.model).collect();
         let page = std::fs::read_to_string(root.join(super::VARIABLES)).unwrap();
         let fresh =
-            super::replace_section(&page, &super::section(&root, &packages).unwrap()).unwrap();
+            super::replace_section(&page, &super::section(&root, &models).unwrap()).unwrap();
         assert!(
             fresh == page,
             "{}'s variable tables are stale: run `cargo xtask docs`",

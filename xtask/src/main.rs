@@ -509,8 +509,12 @@ fn demo() -> Result {
                 .join("scenarios")
                 .join(format!("{name}.toml")),
         )?;
-        dvpp_e2e::units_with(&recorder.inner.table.columns, fmu_der::ports::V_DC, &units)
-            .map_err(|e| format!("{name}: {e}"))?;
+        dvpp_e2e::units_with(
+            &recorder.inner.table.columns,
+            der_model::ports::V_DC,
+            &units,
+        )
+        .map_err(|e| format!("{name}: {e}"))?;
         signals.push(Signals::of(&recorder.inner.table).map_err(|e| format!("{name}: {e}"))?);
     }
     let (load, cloud) = (&signals[0], &signals[1]);
@@ -697,7 +701,7 @@ fn test() -> Result {
         "test",
         "--release",
         "--package",
-        "fmu-grid",
+        "grid-model",
         "--test",
         "dynamics",
     ]))?;
@@ -716,8 +720,8 @@ fn test() -> Result {
 fn write_docs() -> Result {
     let path = root().join(docs::VARIABLES);
     let page = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let packages: Vec<&str> = FMUS.iter().map(|f| f.package).collect();
-    let fresh = docs::replace_section(&page, &docs::section(&root(), &packages)?)?;
+    let models: Vec<&str> = FMUS.iter().map(|f| f.model).collect();
+    let fresh = docs::replace_section(&page, &docs::section(&root(), &models)?)?;
     std::fs::write(&path, fresh).map_err(|e| e.to_string())?;
     println!("updated the variable tables in {}", docs::VARIABLES);
     Ok(())

@@ -2,11 +2,11 @@
 //! per grid-forming share ε (stable within ratings, oscillatory, or lost synchronism), a CSV,
 //! a table and the figure.
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
 use dvpp_report::plot::{Figure, Panel, Style};
-use fmu_der::ports;
 use std::path::Path;
 
 use crate::sweep::EPS;

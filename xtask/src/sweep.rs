@@ -9,12 +9,12 @@
 //! out: they move the operator's dc gains away from the units' bundled start values, so a run
 //! would not start flat. Each Monte Carlo run is 10 s with the step at t = 1 s.
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
 use dvpp_report::plot::{Figure, Panel, Style};
-use fmu_der::ports;
 use std::path::Path;
 use std::sync::{mpsc, Arc, Mutex};
 

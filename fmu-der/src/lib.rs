@@ -1,5 +1,6 @@
-//! DER matching controller FMU: one DVPP unit, grid-forming or grid-following, that realizes
-//! its local reference model with adaptive dynamic participation factors.
+//! DER matching controller model (the `dvpp_der` FMU; its binary is `fmu/`): one DVPP unit,
+//! grid-forming or grid-following, that realizes its local reference model with adaptive dynamic
+//! participation factors.
 //!
 //! * Grid-forming (`mode` = 1): `Δf = -T_i^pf Δp` with `T_i^pf = T_pf/m_i^p` (Δp from the measured
 //!   `p`, converted to the DVPP base `S_dvpp`), and the imposed angle
@@ -204,8 +205,6 @@ impl Model for Der {
         result
     }
 }
-
-fmi_export::export_fmu!(Der);
 
 #[cfg(test)]
 mod golden {

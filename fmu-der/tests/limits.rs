@@ -1,10 +1,10 @@
 //! The DER's limits in closed loop with a Thevenin bus (in-process): current limiting in a
 //! voltage dip, the dc link running short, the energy account, and a start from zero voltage.
 
+use der_model::Der;
 use dvpp_control::Complex;
 use fmi_export::harness::Harness;
 use fmi_export::Status;
-use fmu_der::Der;
 
 const DT: f64 = 1e-3;
 

@@ -1,9 +1,9 @@
 //! Rotational power control in closed loop with a lossy Thevenin bus (in-process).
 
+use der_model::Der;
 use dvpp_control::Complex;
 use fmi_export::harness::Harness;
 use fmi_export::Status;
-use fmu_der::Der;
 use std::f64::consts::PI;
 
 const DT: f64 = 1e-3;

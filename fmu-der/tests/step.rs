@@ -1,10 +1,10 @@
 //! The DER's step logic driven in-process through the FMI call paths: responses against the
 //! analytic reference models, the dc side, limits, and refused parameters and inputs.
 
+use der_model::Der;
 use fmi_export::harness::Harness;
 use fmi_export::instance::Phase;
 use fmi_export::Status;
-use fmu_der::Der;
 use std::f64::consts::PI;
 
 const H: f64 = 5.55;

@@ -1,7 +1,7 @@
 //! Prints the figures of a load step (default: 28 MW at bus 5 of the IEEE 9-bus base case).
 //! Usage: cargo run --release --example load_step [case] [bus] [MW] [t_end] [cp]
 //! (`cp` switches every load, and the step, to constant power.)
-use fmu_grid::{analysis::run_load_step_with, Case, LoadModel};
+use grid_model::{analysis::run_load_step_with, Case, LoadModel};
 fn main() {
     let a: Vec<String> = std::env::args().collect();
     let name = a.get(1).map(String::as_str).unwrap_or("ieee9");

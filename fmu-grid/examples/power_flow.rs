@@ -1,5 +1,5 @@
 //! Prints the power flow of each built-in case and runs 10 s of flat start.
-use fmu_grid::{Case, Grid};
+use grid_model::{Case, Grid};
 fn main() {
     for name in Case::builtin_names() {
         let case = Case::builtin(name).unwrap();

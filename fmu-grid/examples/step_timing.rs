@@ -1,6 +1,6 @@
 //! Times `Grid::step` at h = 1 ms on each built-in case (what the FMU benchmark measures, without
-//! the FMI layer). Usage: cargo run --release -p fmu-grid --example step_timing
-use fmu_grid::{Case, Grid};
+//! the FMI layer). Usage: cargo run --release -p grid-model --example step_timing
+use grid_model::{Case, Grid};
 fn main() {
     for name in Case::builtin_names() {
         let mut g = Grid::new(&Case::builtin(name).unwrap()).unwrap();

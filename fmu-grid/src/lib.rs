@@ -1,4 +1,5 @@
-//! Reduced grid FMU: a phasor (RMS) power-system model built from a case file, with DER slots.
+//! Reduced grid model (the `dvpp_grid` FMU; its binary is `fmu/`): a phasor (RMS) power-system
+//! model built from a case file, with DER slots.
 //!
 //! The modules form layers, each importing only from those below it:
 //! * leaves: [`numerics`] (complex type, solver constants, shared helpers) and [`error`]
@@ -11,7 +12,7 @@
 //! * [`grid`] (the model: its construction, inputs, dynamics, outputs, [`events`] and
 //!   [`snapshot`]), then [`analysis`] (load-step figures), [`config`] and [`ports`].
 //!
-//! This file wraps [`Grid`] as an FMU ([`GridFmu`]).
+//! This file wraps [`Grid`] as an FMI model ([`GridFmu`]; `fmu/` exports it as the FMU).
 //!
 //! `[model]` in `resources/config.toml` selects the case: `case = "<built-in name>"` or
 //! `case_file = "<file in resources/>"` (default: the built-in `ieee9_dvpp`), and may append
@@ -766,8 +767,6 @@ impl Model for GridFmu {
         Ok(())
     }
 }
-
-fmi_export::export_fmu!(GridFmu);
 
 #[cfg(test)]
 mod tests {

@@ -1,5 +1,5 @@
 //! Each class of bad case file returns the right `CaseError`.
-use fmu_grid::{case::builtin_text, Case, CaseError};
+use grid_model::{case::builtin_text, Case, CaseError};
 
 fn base() -> String {
     builtin_text("ieee9").unwrap().to_string()
@@ -198,7 +198,7 @@ fn classical_machine_needs_no_unused_data() {
     let c = Case::from_toml_str(&t).unwrap();
     assert_eq!(c.machines[2].xd, None);
     // and runs: a flat start from the power flow
-    let g = fmu_grid::Grid::new(&c).unwrap();
+    let g = grid_model::Grid::new(&c).unwrap();
     assert!(g.max_derivative().unwrap() < 1e-10);
 }
 
@@ -239,7 +239,7 @@ fn slot_reactance_only_needed_when_grid_forming() {
     assert!(c2
         .ders
         .iter()
-        .all(|d| (d.kind == fmu_grid::DerKind::GridForming) == d.x.is_some()));
+        .all(|d| (d.kind == grid_model::DerKind::GridForming) == d.x.is_some()));
     // a grid-forming slot without x is refused by name
     let t = builtin_text("ieee9_dvpp")
         .unwrap()

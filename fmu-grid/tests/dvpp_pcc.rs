@@ -2,8 +2,8 @@
 //!
 //! Each sums its own slots and measures its bus as `[pcc]` does, and bad entries are refused.
 
-use fmu_grid::case::DvppPcc;
-use fmu_grid::{Case, Grid};
+use grid_model::case::DvppPcc;
+use grid_model::{Case, Grid};
 
 fn split(f_filter_t: f64) -> Case {
     let mut c = Case::builtin("ieee9_dvpp").unwrap();

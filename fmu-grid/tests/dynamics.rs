@@ -1,6 +1,6 @@
 //! Power flow, flat start, load step, power balance, events, inputs and snapshots.
-use fmu_grid::analysis::{run_load_step, run_load_step_with};
-use fmu_grid::{Case, DerInput, DerSetpoint, Event, EventOverride, Grid, LoadModel};
+use grid_model::analysis::{run_load_step, run_load_step_with};
+use grid_model::{Case, DerInput, DerSetpoint, Event, EventOverride, Grid, LoadModel};
 
 #[test]
 fn ieee9_power_flow_matches_reference() {
@@ -103,7 +103,7 @@ fn flat_start_ieee9_hybrid() {
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "300 s of dynamics: run with `cargo test -p fmu-grid --release`"
+    ignore = "300 s of dynamics: run with `cargo test -p grid-model --release`"
 )]
 fn load_step_28mw_bus5_ieee9() {
     let case = Case::builtin("ieee9").unwrap();
@@ -133,7 +133,7 @@ fn load_step_28mw_bus5_ieee9() {
 #[test]
 #[cfg_attr(
     debug_assertions,
-    ignore = "300 s of dynamics: run with `cargo test -p fmu-grid --release`"
+    ignore = "300 s of dynamics: run with `cargo test -p grid-model --release`"
 )]
 fn load_step_constant_power_matches_nominal_droop() {
     // With constant-power loads the step is exactly 28 MW; only the change in losses separates
@@ -359,7 +359,7 @@ fn hybrid_survives_outage_of_both_machines_with_inputs_held() {
 fn ieee9_with_t_ch(t_ch: f64) -> Case {
     let mut case = Case::builtin("ieee9").unwrap();
     match &mut case.machines[1].governor {
-        Some(fmu_grid::case::Governor::TgovReheat { t_ch: t, .. }) => *t = t_ch,
+        Some(grid_model::case::Governor::TgovReheat { t_ch: t, .. }) => *t = t_ch,
         g => panic!("SG2 governor {g:?}"),
     }
     case.events.push(Event::LoadStep {
@@ -434,7 +434,7 @@ fn fast_governor_reduces_the_internal_step_and_matches_a_fine_step() {
 fn default_cases_keep_the_largest_internal_step() {
     for name in Case::builtin_names() {
         let g = Grid::new(&Case::builtin(name).unwrap()).unwrap();
-        assert_eq!(g.internal_step(), fmu_grid::MAX_INTERNAL_STEP, "{name}");
+        assert_eq!(g.internal_step(), grid_model::MAX_INTERNAL_STEP, "{name}");
         assert!(g.internal_step_note().is_none(), "{name}");
     }
 }
@@ -443,9 +443,9 @@ fn default_cases_keep_the_largest_internal_step() {
 fn too_small_time_constant_is_refused_naming_the_parameter() {
     let e = Grid::new(&ieee9_with_t_ch(1e-6)).unwrap_err();
     assert!(
-        matches!(e, fmu_grid::GridError::TimeConstantTooSmall { ref parameter, min }
+        matches!(e, grid_model::GridError::TimeConstantTooSmall { ref parameter, min }
             if parameter.starts_with("machine[2].governor.t_ch = 0.000001 s")
-                && min == fmu_grid::MIN_INTERNAL_STEP * fmu_grid::STEPS_PER_TIME_CONSTANT),
+                && min == grid_model::MIN_INTERNAL_STEP * grid_model::STEPS_PER_TIME_CONSTANT),
         "{e:?}"
     );
     let text = e.to_string();
@@ -455,7 +455,7 @@ fn too_small_time_constant_is_refused_naming_the_parameter() {
     );
     // an exciter and the PCC filter are checked the same way
     let mut case = Case::builtin("ieee9").unwrap();
-    if let Some(fmu_grid::case::Exciter::IeeeT1 { ta, .. }) = &mut case.machines[2].exciter {
+    if let Some(grid_model::case::Exciter::IeeeT1 { ta, .. }) = &mut case.machines[2].exciter {
         *ta = 1e-5;
     }
     let e = Grid::new(&case).unwrap_err().to_string();

@@ -3,7 +3,7 @@
 
 use fmi_export::harness::Harness;
 use fmi_export::Status;
-use fmu_grid::GridFmu;
+use grid_model::GridFmu;
 use std::path::PathBuf;
 
 /// A resources directory holding `case.toml` (ieee9 with SG2's governor `t_ch` set to `t_ch`)
@@ -13,7 +13,7 @@ fn resources(name: &str, t_ch: f64, events: &str) -> PathBuf {
         .join(format!("fmu-grid-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let case = fmu_grid::case::builtin_text("ieee9").expect("the built-in ieee9");
+    let case = grid_model::case::builtin_text("ieee9").expect("the built-in ieee9");
     let at = case.find("name = \"SG2\"").expect("SG2");
     let ch = at + case[at..].find("t_ch = 0.5").expect("SG2's t_ch");
     let case = format!(
@@ -99,7 +99,7 @@ fn a_machine_that_loses_synchronism_ends_the_step_with_an_error_naming_it() {
         .join(format!("fmu-grid-slip-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let case = fmu_grid::case::builtin_text("ieee9").expect("the built-in ieee9");
+    let case = grid_model::case::builtin_text("ieee9").expect("the built-in ieee9");
     let case = case.replacen("p_mw = 85.0", "p_mw = 150.0", 1);
     std::fs::write(dir.join("case.toml"), case).unwrap();
     std::fs::write(

@@ -2,9 +2,9 @@
 
 use fmi_export::harness::Harness;
 use fmi_export::Status;
-use fmu_grid::case::{BranchData, Event, LoadModel};
-use fmu_grid::powerflow::C64 as C;
-use fmu_grid::{Case, Grid, GridConfig, GridFmu};
+use grid_model::case::{BranchData, Event, LoadModel};
+use grid_model::powerflow::C64 as C;
+use grid_model::{Case, Grid, GridConfig, GridFmu};
 
 fn mv_case(rx: f64) -> Case {
     let mut c = Case::builtin("ieee9_mv").expect("built-in ieee9_mv");
@@ -161,7 +161,7 @@ fn grid_side_pocs_deliver_the_area_side_export_less_the_transformer_losses() {
     let area = Grid::new(&mv_case(1.0)).unwrap();
     let mut c = mv_case(1.0);
     for p in &mut c.pocs {
-        p.side = fmu_grid::case::PocSide::Grid;
+        p.side = grid_model::case::PocSide::Grid;
     }
     let grid = Grid::new(&c).unwrap();
     let idx = c.bus_index();
@@ -311,7 +311,7 @@ fn the_fmu_re_solves_the_power_flow_for_its_rx_parameters() {
         assert!((p - o.poc[k - 1].p).abs() < 1e-12, "poc[{k}].p {p}");
     }
     for (k, init) in g.der_initial().iter().enumerate() {
-        let fmu_grid::DerSetpoint::GridForming { theta0, e0 } = *init else {
+        let grid_model::DerSetpoint::GridForming { theta0, e0 } = *init else {
             panic!("grid-forming slots")
         };
         let (theta, e) = (
@@ -370,7 +370,7 @@ fn a_snapshot_keeps_the_rx_ratios_and_the_poc_filters() {
 
 #[test]
 fn bad_poc_and_rx_data_are_refused_by_name() {
-    let text = fmu_grid::case::builtin_text("ieee9_mv").unwrap();
+    let text = grid_model::case::builtin_text("ieee9_mv").unwrap();
     let cases = [
         (
             text.replace("branches = [\"T4-d1\"]", "branches = [\"T9-d1\"]"),

@@ -1,4 +1,5 @@
-//! DVPP operator FMU: online ADPF dc gains for every DER and the desired aggregate response.
+//! DVPP operator model (the `dvpp_operator` FMU; its binary is `fmu/`): online ADPF dc gains for
+//! every DER and the desired aggregate response.
 //!
 //! Centrally, at every communication step (the paper's online adaptation of the low-pass dc
 //! gains, section III; as implemented: `docs/control.md` §6):
@@ -871,8 +872,6 @@ impl Model for Operator {
         Ok(())
     }
 }
-
-fmi_export::export_fmu!(Operator);
 
 #[cfg(test)]
 mod golden {

@@ -5,7 +5,7 @@
 
 use fmi_export::harness::Harness;
 use fmi_export::{Config, Status};
-use fmu_operator::{DerEntry, Form, Operator, OperatorConfig, Role};
+use operator_model::{DerEntry, Form, Operator, OperatorConfig, Role};
 use std::time::Instant;
 
 const DT: f64 = 1e-3;

@@ -4,7 +4,7 @@
 use fmi_export::harness::Harness;
 use fmi_export::instance::Phase;
 use fmi_export::{Config, Status};
-use fmu_operator::{Operator, OperatorConfig};
+use operator_model::{Operator, OperatorConfig};
 
 const DT: f64 = 1e-2;
 const MU_P: [&str; 2] = ["der[1].mu_p", "der[2].mu_p"];
@@ -455,7 +455,7 @@ fn a_rotation_without_pocs_and_a_bad_ratio_are_refused() {
     for (pocs, rx, needle) in [
         (0, 1.0, "pocs = 0"),
         (2, -1.0, "rot_rx"),
-        (fmu_operator::MAX_POCS + 1, 0.0, "points of coupling"),
+        (operator_model::MAX_POCS + 1, 0.0, "points of coupling"),
     ] {
         let mut config = Config::<OperatorConfig>::default();
         config.model.pocs = pocs;

@@ -3,10 +3,10 @@
 //! participation moves from the PV to the wind, and the dc links stay within their limits except
 //! where the PV's primary source runs out of reserve.
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options};
 use dvpp_e2e::{der_units, scenario, units_with};
 use dvpp_report::casestudy::{max_gap, peak, Signals};
-use fmu_der::ports;
 
 fn run(name: &str) -> (Signals, dvpp_cosim::Table) {
     let table = master::System::builder(&scenario(name))

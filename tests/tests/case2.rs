@@ -5,11 +5,11 @@
 //! closed; after the outage of SG1 and SG3 the island settles on the desired response with
 //! grid-forming units, and without any (ε = 0) the grid-following units lose synchronism.
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options};
 use dvpp_cosim::Table;
 use dvpp_e2e::{der_units, scenario, units_with};
 use dvpp_report::casestudy::Signals;
-use fmu_der::ports;
 
 const EPS: [&str; 5] = ["000", "025", "050", "075", "100"];
 

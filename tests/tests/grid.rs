@@ -23,9 +23,9 @@ fn variant(name: &str) -> Arc<Fmu> {
 }
 
 /// The case the grid FMU was built from (its `resources/config.toml`).
-fn case_of(fmu: &Fmu) -> fmu_grid::case::Case {
+fn case_of(fmu: &Fmu) -> grid_model::case::Case {
     let resources = fmu.dir.join("resources");
-    fmi_export::Config::<fmu_grid::GridConfig>::load(&resources)
+    fmi_export::Config::<grid_model::GridConfig>::load(&resources)
         .and_then(|c| c.model.load_case(Some(&resources)))
         .unwrap_or_else(|e| panic!("{}: {e}", fmu.description.model_name))
 }
@@ -114,7 +114,7 @@ fn flat_start(fmu: &Arc<Fmu>, label: &str) {
     let mismatch = fmu.vr("sys.p_mismatch").unwrap();
     let powers: Vec<u32> = (1..=case.ders.len())
         .map(|k| {
-            fmu.vr(&fmu_grid::ports::der_p(k))
+            fmu.vr(&grid_model::ports::der_p(k))
                 .unwrap_or_else(|e| panic!("{label}: {e}"))
         })
         .collect();

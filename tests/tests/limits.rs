@@ -3,10 +3,10 @@
 //! range, each unit's energy account closes, and a run with no operating point left stops with
 //! a one-line cause and its trajectory kept; an experiment that cannot run is refused as such.
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options, Recorder};
 use dvpp_cosim::Table;
 use dvpp_e2e::{der_units, scenario, units_with};
-use fmu_der::ports;
 
 const UNITS: [&str; 3] = ["wind", "pv", "bess"];
 

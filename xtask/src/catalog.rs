@@ -1,23 +1,29 @@
 //! What `cargo xtask` builds, bundles and benchmarks: the FMUs, their variants, the benchmarks.
 
-/// An FMU crate: its package and its model identifier.
+/// An FMU: the package of its binary (a cdylib and the `<package>-describe` printer in
+/// `<model>/fmu/`), its model identifier, and the directory of its model library (which holds
+/// the golden `modelDescription.xml`).
 pub struct Fmu {
     pub package: &'static str,
     pub id: &'static str,
+    pub model: &'static str,
 }
 
 pub const FMUS: &[Fmu] = &[
     Fmu {
         package: "fmu-der",
         id: "dvpp_der",
+        model: "fmu-der",
     },
     Fmu {
         package: "fmu-operator",
         id: "dvpp_operator",
+        model: "fmu-operator",
     },
     Fmu {
         package: "fmu-grid",
         id: "dvpp_grid",
+        model: "fmu-grid",
     },
 ];
 

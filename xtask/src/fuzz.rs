@@ -6,7 +6,7 @@
 //!
 //! * `ssd`: a variant of `case1_load`'s SSD (`dvpp_e2e::mutate`), run by the `cosim` binary for
 //!   0.02 s next to the unpacked FMUs; its CSV compared with the original's.
-//! * `scenario`: a variant of a shipped scenario file (`xtask/scenarios/*.toml`), compiled by
+//! * `scenario`: a variant of a shipped scenario file (`studies/scenarios/*.toml`), compiled by
 //!   the scenario compiler (`xtask fuzz-compile`, the FMUs described in process, not built); its
 //!   SSD compared with the original's.
 //! * `fmi`: a random sequence of FMI calls on a bundled FMU through its C API (`xtask fuzz-fmi`,
@@ -454,8 +454,9 @@ pub fn compile_child(args: &[String]) -> ExitCode {
     };
     let (path, out) = (Path::new(path), Path::new(out));
     let staging = out.join("staging");
-    let mut one = |b: &crate::scenario::Build| crate::scenario::described(&staging, b);
-    let compiled = crate::scenario::bundle(path, out, &mut one).and_then(|ssp| {
+    let mut one =
+        |b: &dvpp_studies::scenario::Build| dvpp_studies::scenario::described(&staging, b);
+    let compiled = dvpp_studies::scenario::bundle(path, out, &mut one).and_then(|ssp| {
         let file = std::fs::File::open(&ssp).map_err(|e| e.to_string())?;
         let mut zip = zip::ZipArchive::new(file).map_err(|e| e.to_string())?;
         let mut ssd = String::new();

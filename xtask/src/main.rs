@@ -1,14 +1,13 @@
-//! `cargo xtask`: builds and bundles the FMUs, runs the tests and the demo.
+//! `cargo xtask`: builds and bundles the FMUs, runs the tests, and runs the case studies (the
+//! release `dvpp-study` binary of `studies/`).
 
-mod case3;
 mod catalog;
 mod docs;
 mod federation;
 mod fuzz;
-mod outage;
-mod scenario;
-mod sweep;
 mod win64;
+
+use dvpp_studies::scenario;
 
 use catalog::{BENCHES, FMUS, VARIANTS};
 
@@ -69,7 +68,7 @@ const USAGE: &str = "usage: cargo xtask <task>
 tasks:
   bundle [ID...]  build the FMUs (all, or those named) in release; write dist/default/<id>.fmu
                   and dist/variants/<id>-<variant>.fmu; with no ID also every shipped scenario
-                  (xtask/scenarios/*.toml) as dist/<scenario>/ with <scenario>.ssp; each FMU has
+                  (studies/scenarios/*.toml) as dist/<scenario>/ with <scenario>.ssp; each FMU has
                   binaries/linux64 and, where the x86_64-pc-windows-gnu target and mingw-w64 are
                   installed (and DVPP_WIN64 is not 0), binaries/win64
   bundle --scenario PATH
@@ -128,10 +127,10 @@ fn main() -> ExitCode {
         }
         Some("bundle") => bundle(&args[1..]).map(|_| ()),
         Some("cosim") => run(master_binary("cosim").args(&args[1..])),
-        Some("demo") => demo(),
-        Some("sweep") => bundle(&[]).and_then(|_| sweep::sweep(&root(), &args[1..])),
-        Some("case3") => bundle(&[]).and_then(|_| case3::case3(&root(), &args[1..])),
-        Some("outage") => bundle(&[]).and_then(|_| outage::outage(&root()).map(|_| ())),
+        // The case studies: bundle, then the studies' release binary.
+        Some(study @ ("demo" | "sweep" | "case3" | "outage")) => {
+            bundle(&[]).and_then(|_| run(study_binary()?.arg(study).args(&args[1..])))
+        }
         Some("bench") => bench(),
         Some("test") => test(),
         // The default FMUs and case1_load only: the scenario cases compile, not bundle.
@@ -139,7 +138,7 @@ fn main() -> ExitCode {
             .and_then(|_| {
                 bundle_scenario(
                     &root()
-                        .join("xtask")
+                        .join("studies")
                         .join("scenarios")
                         .join("case1_load.toml"),
                 )
@@ -328,7 +327,7 @@ fn bundle_packages() -> Result {
 
 /// The scenario files the project ships, by name.
 fn shipped_scenarios() -> Result<Vec<PathBuf>> {
-    let dir = root().join("xtask").join("scenarios");
+    let dir = root().join("studies").join("scenarios");
     let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
         .map_err(|e| format!("{}: {e}", dir.display()))?
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -374,6 +373,22 @@ fn master_binary(name: &str) -> Command {
         "--",
     ]);
     c
+}
+
+/// Build the studies' `dvpp-study` binary in release (a study runs many systems: at release
+/// speed, as `cosim` runs them) and return the command that runs it on the workspace root.
+fn study_binary() -> Result<Command> {
+    run(cargo().args([
+        "build",
+        "--release",
+        "--package",
+        "dvpp-studies",
+        "--bin",
+        "dvpp-study",
+    ]))?;
+    let mut c = Command::new(target_dir().join("release").join("dvpp-study"));
+    c.current_dir(root()).arg("--root").arg(root());
+    Ok(c)
 }
 
 /// Build the master's `cosim` binary in release and return its path.
@@ -467,172 +482,6 @@ fn bench() -> Result {
         .arg("200000"))
 }
 
-/// The case study I runs of the demo and their labels.
-const DEMO_RUNS: [(&str, &str); 2] = [("case1_load", "load step"), ("case1_cloud", "cloud")];
-
-fn demo() -> Result {
-    use dvpp_cosim::master::{self, CsvWriter, Options, Progress, Record, Recorder, Select};
-    use dvpp_report::casestudy::{self, Signals};
-    bundle(&[])?;
-    let results = root().join("results");
-    std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;
-    let mut signals = Vec::new();
-    for (name, _) in DEMO_RUNS {
-        let ssp = root().join("dist").join(name).join(format!("{name}.ssp"));
-        let started = std::time::Instant::now();
-        let csv = results.join(format!("{name}.csv"));
-        // What the figures and metrics need: the scenario's default record set.
-        let (mut writer, mut progress, mut recorder) = (
-            Select::new(CsvWriter::new(&csv), Record::system_default()),
-            Progress::default(),
-            Select::new(Recorder::default(), Record::system_default()),
-        );
-        let outcome = master::System::builder(&ssp)
-            .run(
-                &Options::default(),
-                &mut [&mut writer, &mut progress, &mut recorder],
-            )
-            .map_err(|e| format!("{name}: {e}"))?;
-        if outcome.end != master::End::Completed {
-            return Err(format!("{name}: {:?}", outcome.end));
-        }
-        println!(
-            "{name}: {} s simulated in {:.2} s -> {}",
-            outcome.simulated,
-            started.elapsed().as_secs_f64(),
-            csv.display()
-        );
-        // The metrics find the DERs by their dc links: every unit of the scenario's.
-        let units = scenario::units(
-            &root()
-                .join("xtask")
-                .join("scenarios")
-                .join(format!("{name}.toml")),
-        )?;
-        dvpp_e2e::units_with(&recorder.inner.table.columns, fmu_der::ports::V_DC, &units)
-            .map_err(|e| format!("{name}: {e}"))?;
-        signals.push(Signals::of(&recorder.inner.table).map_err(|e| format!("{name}: {e}"))?);
-    }
-    let (load, cloud) = (&signals[0], &signals[1]);
-    let (gap, worst) = casestudy::max_gap_at(&cloud.df, &load.df, 0);
-    let figures = root().join("tests").join("figures");
-    std::fs::create_dir_all(&figures).map_err(|e| e.to_string())?;
-    let save = |fig: dvpp_report::plot::Figure, file: &str| -> Result {
-        for dir in [&results, &figures] {
-            let path = dir.join(file);
-            fig.save(&path)
-                .map_err(|e| format!("{}: {e}", path.display()))?;
-        }
-        println!("figure tests/figures/{file} (and results/{file})");
-        Ok(())
-    };
-    save(
-        casestudy::overview(
-            "Case study I: 28 MW load increase at bus 2 (grid-forming DVPP replaces SG2)",
-            load,
-            None,
-        ),
-        "case1_load.svg",
-    )?;
-    save(
-        casestudy::overview(
-            "Case study I: a cloud cuts the PV's available power (28 MW set-point drop)",
-            cloud,
-            Some(("Δf_pcc of the load step", load)),
-        ),
-        "case1_cloud.svg",
-    )?;
-    // ADPF Bode magnitudes with the dc gains at the start and at the end of the cloud run.
-    let lpf = low_pass_units("case1_cloud")?;
-    let gains_at = |s: &Signals, i: usize| -> Vec<f64> {
-        s.der
-            .iter()
-            .filter_map(|d| d.mu_p.as_ref().map(|m| m[i.min(m.len() - 1)]))
-            .collect()
-    };
-    let (nominal, after) = (gains_at(cloud, 0), gains_at(cloud, usize::MAX));
-    save(
-        casestudy::adpf_figure(
-            "Case study I: active ADPFs at nominal availability and after the cloud",
-            &lpf,
-            "bess",
-            &[("nominal", &nominal), ("after the cloud", &after)],
-        ),
-        "case1_adpf.svg",
-    )?;
-
-    let mut table = String::from(
-        "| scenario | NRMSE Δf_pcc vs ref.df | NRMSE Δv_pcc vs ref.dv | nadir (desired) | max abs(v_dc − 1) |\n|---|---|---|---|---|\n",
-    );
-    let desired_nadir = load.metrics().f_ref_nadir_hz;
-    for ((name, _), s) in DEMO_RUNS.iter().zip(&signals) {
-        let m = s.metrics();
-        // Both against the operator's ref.df, which takes Δp_pcc against the DVPP's summed set
-        // point: the cloud's lowered PV set point is its disturbance.
-        let f = format!("{:.2} %", m.f_nrmse * 100.0);
-        let dc: Vec<String> = m
-            .v_dc
-            .iter()
-            .map(|(d, x)| format!("{d} {:.2} %", x * 100.0))
-            .collect();
-        table.push_str(&format!(
-            "| `{name}` | {f} | {:.2} % | {:.4} Hz ({:.4} Hz) | {} |\n",
-            m.v_nrmse * 100.0,
-            m.f_nadir_hz,
-            desired_nadir,
-            dc.join(", ")
-        ));
-    }
-    let settled = load.time.iter().position(|&t| t >= 1.02).unwrap_or(0);
-    let gap_after = casestudy::max_gap(&cloud.df, &load.df, settled);
-    let worst = load.time.get(worst).copied().unwrap_or(0.0);
-    table.push_str(&format!(
-        "\nCloud vs load step, largest gap of Δf_pcc relative to the load step's peak deviation: \
-         {:.2} % over the whole run (at t = {worst:.4} s), {:.2} % from t = 1.02 s on.\n",
-        gap * 100.0,
-        gap_after * 100.0
-    ));
-    print!("{table}");
-    docs::update_between(
-        &root(),
-        docs::CASE_STUDIES,
-        "<!-- metrics:begin -->",
-        "<!-- metrics:end -->",
-        &table,
-    )?;
-    println!(
-        "updated the metrics table in {}; results in {}",
-        docs::CASE_STUDIES,
-        results.display()
-    );
-    case3::case3(&root(), &[])
-}
-
-/// The low-pass units of a bundled scenario (ADPF time constant and order from their FMUs).
-fn low_pass_units(scenario: &str) -> Result<Vec<dvpp_report::casestudy::LowPass>> {
-    let dir = root().join("dist").join(scenario);
-    let mut out = Vec::new();
-    let ssp =
-        dvpp_cosim::ssp::read(&dir.join(format!("{scenario}.ssp"))).map_err(|e| e.to_string())?;
-    for c in &ssp.system.components {
-        let fmu = dvpp_cosim::Fmu::load(&ssp.source_path(c)).map_err(|e| e.to_string())?;
-        let start = |n: &str| {
-            fmu.description
-                .variable(n)
-                .and_then(|v| v.start_text())
-                .and_then(|s| s.parse::<f64>().ok())
-        };
-        if start("adpf.p.kind") == Some(1.0) {
-            out.push(dvpp_report::casestudy::LowPass {
-                name: c.name.clone(),
-                tau: start("adpf.p.tau").unwrap_or(1.0),
-                order: start("adpf.p.order").unwrap_or(1.0) as i32,
-            });
-        }
-    }
-    Ok(out)
-}
-
 /// The virtual environment with the Python test dependencies, created on first use.
 fn python_env() -> Result<PathBuf> {
     let venv = root().join("target").join("venv");
@@ -697,7 +546,7 @@ fn test() -> Result {
         "test",
         "--release",
         "--package",
-        "fmu-grid",
+        "grid-model",
         "--test",
         "dynamics",
     ]))?;
@@ -716,8 +565,8 @@ fn test() -> Result {
 fn write_docs() -> Result {
     let path = root().join(docs::VARIABLES);
     let page = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let packages: Vec<&str> = FMUS.iter().map(|f| f.package).collect();
-    let fresh = docs::replace_section(&page, &docs::section(&root(), &packages)?)?;
+    let models: Vec<&str> = FMUS.iter().map(|f| f.model).collect();
+    let fresh = docs::replace_section(&page, &docs::section(&root(), &models)?)?;
     std::fs::write(&path, fresh).map_err(|e| e.to_string())?;
     println!("updated the variable tables in {}", docs::VARIABLES);
     Ok(())

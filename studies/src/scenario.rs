@@ -2,12 +2,12 @@
 //! `dist/<scenario>/`: one FMU per component with the scenario's values as start values, and an
 //! SSP system `<scenario>.ssp` that wires them by the signal contract (`docs/contract.md`).
 
+use der_model::ports as der;
 use dvpp_cosim::ssp;
-use fmu_der::ports as der;
-use fmu_grid::ports as grid;
-use fmu_operator::ports as op;
-use fmu_operator::{Form, Role};
+use grid_model::ports as grid;
 use model_description::{BaseType, Causality, ModelDescription};
+use operator_model::ports as op;
+use operator_model::{Form, Role};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use toml::{Table, Value};
@@ -63,7 +63,7 @@ pub struct FleetSpec {
     pub q_mvar: f64,
     /// Slot kind (default grid-forming).
     #[serde(default = "grid_forming")]
-    pub kind: fmu_grid::DerKind,
+    pub kind: grid_model::DerKind,
     /// Each unit's series resistance and reactance to its bus, pu on its own rating.
     #[serde(default = "fleet_r")]
     pub r: f64,
@@ -77,8 +77,8 @@ pub struct FleetSpec {
     pub start: Table,
 }
 
-fn grid_forming() -> fmu_grid::DerKind {
-    fmu_grid::DerKind::GridForming
+fn grid_forming() -> grid_model::DerKind {
+    grid_model::DerKind::GridForming
 }
 
 fn fleet_r() -> f64 {
@@ -216,9 +216,9 @@ fn split_ders(ders: &[DerSpec], eps: f64) -> Vec<DerSpec> {
                 let preset = d
                     .preset
                     .as_deref()
-                    .and_then(|p| fmu_der::Preset::named(p).ok());
+                    .and_then(|p| der_model::Preset::named(p).ok());
                 if let Some(p) = preset {
-                    let u = fmu_der::UnitDefaults::of(Some(p));
+                    let u = der_model::UnitDefaults::of(Some(p));
                     let gains = [
                         (der::MU_P.to_string(), u.mu_p),
                         (der::MU_Q.to_string(), u.mu_q),
@@ -247,19 +247,19 @@ fn split_ders(ders: &[DerSpec], eps: f64) -> Vec<DerSpec> {
 
 /// The grid case with every DER slot split into its grid-forming and grid-following parts
 /// (ratings and dispatch scaled, the PCC's slot list following).
-fn split_case(case: &fmu_grid::Case, eps: f64, scale: f64) -> fmu_grid::Case {
+fn split_case(case: &grid_model::Case, eps: f64, scale: f64) -> grid_model::Case {
     let mut out = case.clone();
     out.ders.clear();
     let mut new_index = vec![Vec::new(); case.ders.len()];
     for (&(suffix, forming, part), _) in parts(eps).iter().zip(0..) {
         for (k, slot) in case.ders.iter().enumerate() {
             let name = slot.name.clone().unwrap_or_else(|| format!("der{}", k + 1));
-            out.ders.push(fmu_grid::DerSlot {
+            out.ders.push(grid_model::DerSlot {
                 name: Some(format!("{name}{suffix}")),
                 kind: if forming {
-                    fmu_grid::DerKind::GridForming
+                    grid_model::DerKind::GridForming
                 } else {
-                    fmu_grid::DerKind::GridFollowing
+                    grid_model::DerKind::GridFollowing
                 },
                 rating_mva: slot.rating_mva * part * scale,
                 p_mw: slot.p_mw * part,
@@ -396,7 +396,7 @@ impl Scenario {
     }
 
     /// The DER slots of the fleets, in the order of [`Scenario::expand_fleets`]'s DERs.
-    fn fleet_slots(&self, case: &fmu_grid::Case) -> Result<Vec<fmu_grid::DerSlot>, String> {
+    fn fleet_slots(&self, case: &grid_model::Case) -> Result<Vec<grid_model::DerSlot>, String> {
         let mut slots = Vec::new();
         for f in &self.fleet {
             if let Some(b) = f
@@ -411,7 +411,7 @@ impl Scenario {
             }
             let n = f.count as f64;
             for k in 1..=f.count {
-                slots.push(fmu_grid::DerSlot {
+                slots.push(grid_model::DerSlot {
                     name: Some(format!("{}{k}", f.name)),
                     kind: f.kind,
                     bus: f.buses[(k - 1) % f.buses.len()],
@@ -515,13 +515,13 @@ const OPERATOR_FMU: (&str, &str) = ("fmu-operator", "dvpp_operator");
 /// The operator role of a DER from its p-f ADPF kind (`adpf.p.kind`).
 fn role_of(md: &ModelDescription, der: &str) -> Result<Role, String> {
     let kind = start_of(md, der::ADPF_P_KIND).ok_or(format!("DER '{der}': no adpf.p.kind"))?;
-    let kind = fmu_der::AdpfKind::from_code(kind as i32)
+    let kind = der_model::AdpfKind::from_code(kind as i32)
         .map_err(|e| format!("DER '{der}': adpf.p.kind {e}"))?;
     Ok(match kind {
-        fmu_der::AdpfKind::Static | fmu_der::AdpfKind::LowPass => Role::LowPass,
-        fmu_der::AdpfKind::HighPass => Role::HighPass,
-        fmu_der::AdpfKind::BandPass => Role::BandPass,
-        fmu_der::AdpfKind::Complement => Role::Complement,
+        der_model::AdpfKind::Static | der_model::AdpfKind::LowPass => Role::LowPass,
+        der_model::AdpfKind::HighPass => Role::HighPass,
+        der_model::AdpfKind::BandPass => Role::BandPass,
+        der_model::AdpfKind::Complement => Role::Complement,
     })
 }
 
@@ -562,8 +562,8 @@ struct Unit {
 /// The grid step's result: the case and the power-flow point the other units start from.
 struct GridUnit {
     unit: Unit,
-    case: fmu_grid::Case,
-    pf: fmu_grid::Outputs,
+    case: grid_model::Case,
+    pf: grid_model::Outputs,
 }
 
 /// A bundled DER and what its wiring depends on.
@@ -690,7 +690,7 @@ impl Job<'_, '_> {
             std::fs::copy(f, staging.join(f.file_name().expect("file")))
                 .map_err(|e| here(format!("case_file {}: {e}", f.display())))?;
         }
-        let config: fmu_grid::GridConfig = Value::Table(model.clone())
+        let config: grid_model::GridConfig = Value::Table(model.clone())
             .try_into()
             .map_err(|e| here(format!("[grid]: {e}")))?;
         let mut case = config.load_case(Some(&staging)).map_err(here)?;
@@ -715,7 +715,7 @@ impl Job<'_, '_> {
             files = vec![file];
         }
         apply_rx_starts(&mut case, &self.sc.grid.start).map_err(here)?;
-        let pf = fmu_grid::Grid::new(&case)
+        let pf = grid_model::Grid::new(&case)
             .map_err(|e| here(format!("grid: {e}")))?
             .outputs();
         let start = self.sc.grid.start.clone();
@@ -737,7 +737,7 @@ impl Job<'_, '_> {
     /// The case as the scenario extends it: without its own slots (`case_slots = false`), the
     /// fleets' slots appended (and summed into the one DVPP's `[pcc]`), one `[[dvpp_pcc]]` per
     /// named DVPP. Returns whether anything changed.
-    fn extend_case(&self, case: &mut fmu_grid::Case) -> Result<bool, String> {
+    fn extend_case(&self, case: &mut grid_model::Case) -> Result<bool, String> {
         let mut changed = false;
         if !self.sc.grid.case_slots {
             if self.sc.fleet.is_empty() {
@@ -797,7 +797,7 @@ impl Job<'_, '_> {
                         "[dvpp.{name}] pcc_bus = {bus} is not a bus of the grid case"
                     ));
                 }
-                case.dvpp_pccs.push(fmu_grid::case::DvppPcc {
+                case.dvpp_pccs.push(grid_model::case::DvppPcc {
                     name: name.clone(),
                     bus,
                     slots: members.iter().map(|k| k + 1).collect(),
@@ -855,11 +855,11 @@ impl Job<'_, '_> {
             if let Some(rx) = self.rot_rx(g)? {
                 start.insert(der::ROT_RX.into(), real(rx));
             }
-            let forming = slot.kind == fmu_grid::DerKind::GridForming;
+            let forming = slot.kind == grid_model::DerKind::GridForming;
             let mode = if forming {
-                fmu_der::Mode::GridForming
+                der_model::Mode::GridForming
             } else {
-                fmu_der::Mode::GridFollowing
+                der_model::Mode::GridFollowing
             };
             start.insert(der::MODE.into(), Value::Integer(mode.code().into()));
             // The slot's rating and impedance, so that E∠θ starts behind the grid's own impedance.
@@ -935,13 +935,13 @@ impl Job<'_, '_> {
                 .filter(|(_, u)| !per_form || u.0 == d.forming)
                 .map(|(j, &(_, tau, order))| (j + 1, tau, order))
                 .collect();
-            if closed.len() > fmu_der::MAX_LPF {
+            if closed.len() > der_model::MAX_LPF {
                 return Err(self.here(format!(
                     "DER '{}' (the complement of DVPP {}) would close {} low-pass units; a complement closes at most {} (a fleet's units are best given static ADPFs, which need no complement)",
                     d.unit.name,
                     name.unwrap_or("of the scenario"),
                     closed.len(),
-                    fmu_der::MAX_LPF
+                    der_model::MAX_LPF
                 )));
             }
             d.closes = closed.iter().map(|c| c.0).collect();
@@ -1052,7 +1052,7 @@ impl Job<'_, '_> {
 
 /// The grid's R/X start values (`mv.rx`, `mv.line[k].rx` > 0) applied to `case`, so that the
 /// power flow the other units start from is the one the grid FMU solves at initialization.
-fn apply_rx_starts(case: &mut fmu_grid::Case, start: &Table) -> Result<(), String> {
+fn apply_rx_starts(case: &mut grid_model::Case, start: &Table) -> Result<(), String> {
     let value = |key: &str| -> Result<Option<f64>, String> {
         match start.get(key) {
             None => Ok(None),
@@ -1284,9 +1284,9 @@ pub fn described(dir: &Path, b: &Build) -> Result<ModelDescription, String> {
         std::fs::copy(f, res.join(name)).map_err(|e| format!("{}: {e}", f.display()))?;
     }
     let md = match b.package {
-        "fmu-grid" => describe::<fmu_grid::GridFmu>(&Config::load(&res)?, Some(&res)),
-        "fmu-der" => describe::<fmu_der::Der>(&Config::load(&res)?, Some(&res)),
-        "fmu-operator" => describe::<fmu_operator::Operator>(&Config::load(&res)?, Some(&res)),
+        "fmu-grid" => describe::<grid_model::GridFmu>(&Config::load(&res)?, Some(&res)),
+        "fmu-der" => describe::<der_model::Der>(&Config::load(&res)?, Some(&res)),
+        "fmu-operator" => describe::<operator_model::Operator>(&Config::load(&res)?, Some(&res)),
         p => Err(format!("unknown package {p}")),
     }?;
     // The system only needs the file to exist.

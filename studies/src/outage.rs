@@ -2,11 +2,11 @@
 //! per grid-forming share ε (stable within ratings, oscillatory, or lost synchronism), a CSV,
 //! a table and the figure.
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
 use dvpp_report::plot::{Figure, Panel, Style};
-use fmu_der::ports;
 use std::path::Path;
 
 use crate::sweep::EPS;
@@ -92,9 +92,9 @@ fn judge(eps: u32, t: &Table, expected: &[String]) -> Result<Verdict, String> {
     let deenergized_at = (after..time.len())
         .find(|&k| energized[k] < 0.5)
         .map(|k| time[k]);
-    let units = dvpp_e2e::units_with(&t.columns, ports::I_AC, expected)?;
-    dvpp_e2e::units_with(&t.columns, ports::SYNCHRONIZED, expected)?;
-    dvpp_e2e::units_with(&t.columns, ports::V_DC, expected)?;
+    let units = crate::units_with(&t.columns, ports::I_AC, expected)?;
+    crate::units_with(&t.columns, ports::SYNCHRONIZED, expected)?;
+    crate::units_with(&t.columns, ports::V_DC, expected)?;
     let mut lost_sync = Vec::new();
     let mut i_max = (0.0, String::new());
     let mut v_dc_min = (f64::INFINITY, String::new());
@@ -143,7 +143,7 @@ fn judge(eps: u32, t: &Table, expected: &[String]) -> Result<Verdict, String> {
     })
 }
 
-/// Run `dist/case2_outage_eps*/` (bundled from `xtask/scenarios/`), one thread per run up to
+/// Run `dist/case2_outage_eps*/` (bundled from `studies/scenarios/`), one thread per run up to
 /// the cores.
 fn run(root: &Path) -> Result<Vec<Verdict>, String> {
     let dist = root.join("dist");
@@ -159,7 +159,7 @@ fn run(root: &Path) -> Result<Vec<Verdict>, String> {
                 let name = format!("case2_outage_eps{eps:03}");
                 let path = dist.join(&name).join(format!("{name}.ssp"));
                 let scenario = root
-                    .join("xtask")
+                    .join("studies")
                     .join("scenarios")
                     .join(format!("{name}.toml"));
                 let expected = crate::scenario::units(&scenario);

@@ -7,13 +7,13 @@
 //! at initialization), the same draws for both disturbances; the DER and operator keep
 //! `rot.rx` = 1 (the operator does not know the lines).
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::nrmse;
 use dvpp_report::plot::{Figure, Panel, Style};
-use fmu_der::ports;
-use fmu_grid::ports as grid_ports;
+use grid_model::ports as grid_ports;
 use std::path::Path;
 use std::sync::Mutex;
 
@@ -84,7 +84,7 @@ fn measure(run: &mut Run, t: &Table) -> Result<(), String> {
     series.push(df_ref.iter().map(|x| x * F_NOM_HZ).collect());
     run.series = series;
     run.dp_pocs_mw = dp_pocs;
-    let names = dvpp_e2e::units_with(&t.columns, ports::P_ROT, &run.expected)?;
+    let names = crate::units_with(&t.columns, ports::P_ROT, &run.expected)?;
     let mut dp_units = 0.0;
     for (slot, u) in names.iter().enumerate() {
         let p = column(t, &format!("grid.{}", grid_ports::der_p(slot + 1)))?;
@@ -384,7 +384,7 @@ pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
         let pkg = ssp::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
         let expected = crate::scenario::units(
             &root
-                .join("xtask")
+                .join("studies")
                 .join("scenarios")
                 .join(format!("{name}.toml")),
         )?;

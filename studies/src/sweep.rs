@@ -9,12 +9,12 @@
 //! out: they move the operator's dc gains away from the units' bundled start values, so a run
 //! would not start flat. Each Monte Carlo run is 10 s with the step at t = 1 s.
 
+use der_model::ports;
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
 use dvpp_report::plot::{Figure, Panel, Style};
-use fmu_der::ports;
 use std::path::Path;
 use std::sync::{mpsc, Arc, Mutex};
 
@@ -183,13 +183,13 @@ fn measure(job: Job, table: Result<Table, String>, units: &[String]) -> Row {
         row.rocof_500 = (at(&time, &coi, T_EVENT + 0.5) - c0) / 0.5;
         row.settle_hz = *coi.last().ok_or("no rows")?;
         // The metrics find the units by their dc links: every unit of the scenario's.
-        dvpp_e2e::units_with(&t.columns, ports::V_DC, units)?;
+        crate::units_with(&t.columns, ports::V_DC, units)?;
         let m = Signals::of(&t)?.metrics();
         row.f_nrmse = m.f_nrmse;
         row.v_nrmse = m.v_nrmse;
         row.v_dc_dev = m.v_dc.iter().map(|d| d.1).fold(0.0, f64::max);
         let mut i_max = 0.0_f64;
-        for u in dvpp_e2e::units_with(&t.columns, ports::I_AC, units)? {
+        for u in crate::units_with(&t.columns, ports::I_AC, units)? {
             i_max = col(&format!("{u}.{}", ports::I_AC))?
                 .into_iter()
                 .fold(i_max, f64::max);
@@ -209,7 +209,7 @@ fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, Stri
         let path = root.join("dist").join(&name).join(format!("{name}.ssp"));
         let pkg = ssp::read(&path).map_err(|e| format!("{}: {e}", path.display()))?;
         let scenario = root
-            .join("xtask")
+            .join("studies")
             .join("scenarios")
             .join(format!("{name}.toml"));
         bases.push((eps, pkg, crate::scenario::units(&scenario)?));

@@ -1,0 +1,3 @@
+//! The DER matching controller FMU's binary: the 34 FMI 2.0 Co-Simulation functions of [`der_model::Der`].
+
+fmi_export::export_fmu!(der_model::Der);

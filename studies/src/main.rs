@@ -1,0 +1,46 @@
+//! `dvpp-study`: runs a case study on the bundled systems (`cargo xtask demo | sweep | case3 |
+//! outage` bundle first, then run this binary in release).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+const USAGE: &str = "usage: dvpp-study [--root DIR] <study> [ARGS]
+
+Runs a case study on the systems `cargo xtask bundle` wrote to DIR/dist/ (DIR: the workspace
+root, default the current directory); results go to DIR/results/, figures to DIR/tests/figures/,
+tables to DIR/docs/case-studies.md.
+
+studies:
+  demo                       case study I (case1_load, case1_cloud), then case study III
+  case3 [--draws N] [--seed S]
+                             case study III and its R/X Monte Carlo (default 24 draws, seed 1)
+  sweep [--runs N] [--seed S]
+                             case study II over ε with N (default 40) Monte Carlo load steps
+  outage                     case study II's outage of SG1 and SG3, a verdict per ε";
+
+fn main() -> ExitCode {
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut root = PathBuf::from(".");
+    if args.first().map(String::as_str) == Some("--root") {
+        let Some(dir) = args.get(1) else {
+            eprintln!("{USAGE}");
+            return ExitCode::FAILURE;
+        };
+        root = PathBuf::from(dir);
+        args.drain(..2);
+    }
+    let result = match args.first().map(String::as_str) {
+        Some("demo") if args.len() == 1 => dvpp_studies::demo::demo(&root),
+        Some("case3") => dvpp_studies::case3::case3(&root, &args[1..]),
+        Some("sweep") => dvpp_studies::sweep::sweep(&root, &args[1..]),
+        Some("outage") if args.len() == 1 => dvpp_studies::outage::outage(&root).map(|_| ()),
+        _ => Err(USAGE.into()),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("dvpp-study: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}

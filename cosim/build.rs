@@ -1,4 +1,4 @@
-//! Build script: compiles the C-variadic FMI logger shim (c/logger.c) that src/fmu.rs hands to FMUs.
+//! Build script: compiles the C-variadic FMI logger shim (c/logger.c) that src/fmu/instance.rs hands to FMUs.
 
 fn main() {
     // The C header of the ABI, from the `fmi2` crate (its `links` metadata).

@@ -5,7 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-/* Defined in Rust (src/fmu.rs): records one formatted message; never unwinds. */
+/* Defined in Rust (src/fmu/log.rs): records one formatted message; never unwinds. */
 void dvpp_cosim_log_sink(void *env, const char *instance, int status, const char *category, const char *formatted);
 
 void dvpp_cosim_logger(fmi2ComponentEnvironment env, fmi2String instance, fmi2Status status, fmi2String category,

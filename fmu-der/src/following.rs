@@ -1,8 +1,8 @@
 //! The grid-following step: a PLL measures `Δf`, the converter injects `p₀ - T_fp Δf` and `q₀ - T_vq Δv`.
 
+use crate::common::{pll_model, Common};
+use crate::common::{Outcome, StepPoint};
 use crate::limits;
-use crate::runtime::{pll_model, Common};
-use crate::step::{Outcome, StepPoint};
 use crate::{err, AdpfKind, Der};
 use dvpp_control::{GflFpModel, LtiSimulator};
 use fmi_export::{Context, ModelError, Store};

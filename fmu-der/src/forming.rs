@@ -1,8 +1,8 @@
 //! The grid-forming step: `Δf = -T_pf/m Δp` sets the angle, a PI on `E` makes `q` track its reference.
 
+use crate::common::Common;
+use crate::common::{Outcome, StepPoint};
 use crate::limits;
-use crate::runtime::Common;
-use crate::step::{Outcome, StepPoint};
 use crate::{err, AdpfKind, Der};
 use dvpp_control::{Complex, GfmPfModel};
 use fmi_export::{ModelError, Store};

@@ -29,6 +29,7 @@
 
 mod adpf;
 mod codes;
+mod common;
 mod dc;
 mod following;
 mod forming;

@@ -1,18 +1,15 @@
 //! The per-instance runtime state: what `initialize` builds from the parameters, and its outputs.
 
+use crate::common::{pll_model, Common, LimitEpisodes, Startup};
 use crate::dc::{DcParams, DcSide};
 use crate::following::Following;
 use crate::forming::Forming;
-use crate::limits::{self, Episode};
-use crate::{err, positive, AdpfKind, Der, Mode, MAX_LPF};
+use crate::limits;
+use crate::{err, positive, Der, Mode, MAX_LPF};
 use dvpp_control::phasor::internal_voltage;
-use dvpp_control::{
-    Adpf, GflFpModel, GfmPfModel, Hold, LtiSimulator, Rotation, StateSpace, TDes, VqModel,
-};
+use dvpp_control::{Adpf, GflFpModel, GfmPfModel, Hold, LtiSimulator, Rotation, TDes, VqModel};
 use fmi_export::{Context, ModelError, Store};
-use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
-use std::f64::consts::PI;
 
 #[derive(Clone, Serialize, Deserialize)]
 pub(crate) enum Channel {
@@ -27,57 +24,6 @@ pub(crate) struct Runtime {
     pub(crate) common: Common,
 }
 
-/// The state both channels share.
-#[derive(Clone, Serialize, Deserialize)]
-pub(crate) struct Common {
-    pub(crate) vq: VqModel,
-    pub(crate) dc: DcSide,
-    /// Kind of the p-f ADPF (which gains the inputs set).
-    pub(crate) p_kind: AdpfKind,
-    pub(crate) n_lpf: usize,
-    pub(crate) q_kind: AdpfKind,
-    pub(crate) p0: f64,
-    pub(crate) q0: f64,
-    pub(crate) v0: f64,
-    pub(crate) e0: f64,
-    pub(crate) theta0: f64,
-    /// Grid-following: the PLL frequency held over the next step.
-    pub(crate) df_held: f64,
-    /// Grid-forming: the reactive reference held over the next step, rotated (`q'`; `q` when
-    /// `rot.rx` = 0).
-    pub(crate) q_ref: f64,
-    /// `(p, q) ↔ (p', q')` for the lines' R/X (`rot.rx`; the identity at 0).
-    pub(crate) rot: Rotation,
-    /// Power the limits withheld at the last step (what the internal voltage would have
-    /// delivered minus what the converter imposed), on S_base: the controls see the unlimited
-    /// power, so the internal node stays synchronized while limited.
-    pub(crate) withheld: (f64, f64),
-    /// Waiting for the terminal voltage (a start from zero voltage); `None` once synchronized.
-    pub(crate) startup: Option<Startup>,
-    /// Time of synchronization after a start from zero voltage (the set point ramps from there).
-    pub(crate) t_sync: Option<f64>,
-    pub(crate) limit: LimitEpisodes,
-    /// Warning already given in this episode.
-    pub(crate) warned_gains: bool,
-}
-
-/// A unit waiting for the voltage to appear.
-#[derive(Clone, Serialize, Deserialize)]
-pub(crate) struct Startup {
-    /// Since when the voltage has been above `startup.v_sync` and steady.
-    pub(crate) ok_since: Option<f64>,
-    pub(crate) v_last: f64,
-}
-
-/// The episodes of each limit (the `limit.*` outputs).
-#[derive(Clone, Default, Serialize, Deserialize)]
-pub(crate) struct LimitEpisodes {
-    pub(crate) current: Episode,
-    pub(crate) dc: Episode,
-    pub(crate) source: Episode,
-    pub(crate) modulation: Episode,
-}
-
 impl Channel {
     /// The mode the channel realizes.
     pub(crate) fn mode(&self) -> Mode {
@@ -86,19 +32,6 @@ impl Channel {
             Channel::Following(_) => Mode::GridFollowing,
         }
     }
-}
-
-/// Exact ZOH model of the PLL: `e = v_angle - θ_pll`, `Δω = k_p e + k_i ∫e`, `θ_pll' = Δω`;
-/// outputs `Δf_pll = Δω/(2π f_nom)` (pu) and `θ_pll`.
-pub(crate) fn pll_model(kp: f64, ki: f64, f_nom: f64) -> StateSpace {
-    let w = 2.0 * PI * f_nom;
-    StateSpace::new(
-        DMatrix::from_row_slice(2, 2, &[0.0, -1.0, ki, -kp]),
-        DVector::from_column_slice(&[1.0, kp]),
-        DMatrix::from_row_slice(2, 2, &[ki / w, -kp / w, 0.0, 1.0]),
-        DVector::from_column_slice(&[kp / w, 0.0]),
-    )
-    .expect("PLL realization")
 }
 
 impl Der {

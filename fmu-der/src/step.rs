@@ -1,42 +1,13 @@
 //! One communication step: set point, dc gains, the channel's step, limit episodes, dc side, startup.
 
-use crate::runtime::{Channel, Runtime, Startup};
-use crate::{err, AdpfKind, Der, MAX_LPF};
+use crate::common::{Outcome, Startup, StepPoint};
+use crate::runtime::{Channel, Runtime};
+use crate::{err, AdpfKind, Der};
 use fmi_export::{Context, ModelError, Store};
 
 /// Below this terminal voltage (pu) a grid-following unit's PLL has no angle to lock to: the
 /// unit loses synchronism and blocks (a grid-forming unit keeps forming its voltage).
 const PLL_V_MIN: f64 = 0.05;
-
-/// What the common part of a step hands to the channel's step.
-#[derive(Clone, Copy)]
-pub(crate) struct StepPoint {
-    pub(crate) t: f64,
-    pub(crate) h: f64,
-    /// Terminal voltage deviation from the operating point, pu.
-    pub(crate) dv: f64,
-    /// S_base/S_dvpp and S_base/S_rated.
-    pub(crate) to_dvpp: f64,
-    pub(crate) to_rated: f64,
-    /// The set point (dispatch, ramped, curtailed), pu on S_base.
-    pub(crate) p_set: f64,
-    /// The closed low-pass units' dc gains (a complement unit's, scaled to its share).
-    pub(crate) lpf: [f64; MAX_LPF],
-    pub(crate) v: f64,
-    pub(crate) v_angle: f64,
-    /// The dc link's active power budget for the ac side, pu on S_rated.
-    pub(crate) budget: (f64, f64),
-    pub(crate) i_max: f64,
-}
-
-/// What the channel's step reports to the limit episodes.
-pub(crate) struct Outcome {
-    pub(crate) current_limit: bool,
-    pub(crate) dc_limit: bool,
-    /// The current asked for, per unit of I_max.
-    pub(crate) request: f64,
-    pub(crate) modulation: bool,
-}
 
 impl Der {
     pub(crate) fn step(

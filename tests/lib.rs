@@ -188,7 +188,7 @@ pub mod foreign {
     }
 
     /// Compile each model with the shared skeleton and zip `<id>.fmu` (modelDescription.xml and
-    /// binaries/linux64/<id>.so) into `out_dir`; returns the archives in `MODELS` order.
+    /// `binaries/linux64/<id>.so`) into `out_dir`; returns the archives in `MODELS` order.
     pub fn build_foreign(out_dir: &Path) -> Vec<PathBuf> {
         let src = foreign_dir();
         std::fs::create_dir_all(out_dir).expect("create the output directory");
@@ -240,7 +240,7 @@ pub mod foreign {
         zip.finish().expect("zip finish");
     }
 
-    /// `<out>/<name>/` (SystemStructure.ssd and resources/<id>.fmu) and the same zipped as `<name>.ssp`.
+    /// `<out>/<name>/` (`SystemStructure.ssd` and `resources/<id>.fmu`) and the same zipped as `<name>.ssp`.
     pub fn system(out: &Path, name: &str, fmus: &[PathBuf]) -> (PathBuf, PathBuf) {
         let dir = out.join(name);
         std::fs::create_dir_all(dir.join("resources")).expect("create the system directory");

@@ -1,8 +1,8 @@
 //! Synchronous machines: case data, validation, states, initialization, stator and derivatives.
 //!
 //! A machine's states are its own (rotor angle δ, speed ω, transient EMFs E'q, E'd; see
-//! [`state`]) followed by those of its governor and exciter, which it drives through
-//! [`Governor`] and [`Exciter`]. [`Layout`] records where they sit in the grid's state vector.
+//! `state`) followed by those of its governor and exciter, which it drives through
+//! [`Governor`] and [`Exciter`]. `Layout` records where they sit in the grid's state vector.
 
 use crate::error::GridError;
 use crate::error::{check_range, nonneg, pos, CaseError};

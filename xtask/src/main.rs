@@ -88,8 +88,8 @@ tasks:
            case study III with its R/X Monte Carlo (as `case3`)
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
            Rust tests (the win64 binaries under wine among them, required: DVPP_REQUIRE_WIN64=1
-           unless DVPP_WIN64=0), the short fuzz (`fuzz --cases 300 --seed 1`), then the Python
-           (fmpy) tests in target/venv
+           unless DVPP_WIN64=0), the short fuzz (`fuzz --cases 300 --seed 1`), the API docs
+           without warnings, then the Python (fmpy) tests in target/venv
   sweep [--runs N] [--seed S]
            bundle, then run case study II (case2_load_eps000 ... eps100) on all cores: the 42 MW
            step per ε and N (default 40) seeded Monte Carlo load steps each; summary in
@@ -550,6 +550,10 @@ fn test() -> Result {
         "--test",
         "dynamics",
     ]))?;
+    // The API documentation builds without a warning (a broken intra-doc link, stray HTML).
+    run(cargo()
+        .args(["doc", "--workspace", "--no-deps", "--quiet"])
+        .env("RUSTDOCFLAGS", "-D warnings"))?;
     run(Command::new(&python)
         .args(["-m", "pytest", "-q", "tests/python"])
         .current_dir(root())

@@ -166,7 +166,7 @@ impl Format for Mat {
 ///
 /// The run's thread only copies each row into a chunk; a writer thread of the file's own turns
 /// full chunks into bytes (CSV text or `.mat` doubles) and writes them, so that formatting and
-/// the kernel's copying overlap the simulation on another core. At most [`CHUNKS`] chunks wait
+/// the kernel's copying overlap the simulation on another core. At most `CHUNKS` chunks wait
 /// for it (then the run waits). A write error stops the writer; the run sees it at its next
 /// row and ends with it.
 pub struct ResultWriter<F: Format + Send + 'static> {

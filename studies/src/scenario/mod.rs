@@ -179,7 +179,7 @@ mod tests {
         scenario: &Path,
     ) -> Result<(ssp::System, BTreeMap<String, ModelDescription>), String> {
         let name = name_of(scenario).unwrap();
-        let tmp = dvpp_cosim::tmp::TempDir::new(&format!("xtask-scenario-{name}")).unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new(&format!("studies-scenario-{name}")).unwrap();
         let dir = tmp.path().to_path_buf();
         let mut mds = BTreeMap::new();
         let mut one = |b: &Build| -> Result<ModelDescription, String> {
@@ -269,7 +269,7 @@ mod tests {
 
     #[test]
     fn hybrid_dvpp_wires_grid_following_units_and_two_complements() {
-        let tmp = dvpp_cosim::tmp::TempDir::new("xtask-hybrid").unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new("studies-hybrid").unwrap();
         let dir = tmp.path().to_path_buf();
         let path = dir.join("hybrid.toml");
         let mut text = String::from(
@@ -296,7 +296,7 @@ mod tests {
 
     #[test]
     fn eps_splits_every_unit_and_its_slot() {
-        let tmp = dvpp_cosim::tmp::TempDir::new("xtask-eps").unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new("studies-eps").unwrap();
         let dir = tmp.path().to_path_buf();
         for (eps, connections) in [
             // Both forms: as the hand-written hybrid DVPP.
@@ -402,7 +402,7 @@ mod tests {
 
     /// The error bundling `text` (a scenario file body) gives.
     fn bundle_error(text: &str) -> String {
-        let tmp = dvpp_cosim::tmp::TempDir::new("xtask-bad").unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new("studies-bad").unwrap();
         let dir = tmp.path().to_path_buf();
         let path = dir.join("bad.toml");
         std::fs::write(&path, text).unwrap();
@@ -414,7 +414,7 @@ mod tests {
 
     #[test]
     fn a_complement_closing_more_low_pass_units_than_it_can_is_refused() {
-        let tmp = dvpp_cosim::tmp::TempDir::new("xtask-lpf").unwrap();
+        let tmp = dvpp_cosim::tmp::TempDir::new("studies-lpf").unwrap();
         let dir = tmp.path().to_path_buf();
         let path = dir.join("many_lpf.toml");
         let mut text = String::from(

@@ -97,14 +97,7 @@ fn panics_are_contained_and_errors_escalate() {
                     fmi2String,
                     fmi2String,
                 ),
-                unsafe extern "C" fn(
-                    fmi2ComponentEnvironment,
-                    fmi2String,
-                    fmi2Status,
-                    fmi2String,
-                    fmi2String,
-                    ...
-                ),
+                fmi_export::ffi::fmi2CallbackLoggerTYPE,
             >(logger)),
             allocate_memory: None,
             free_memory: None,

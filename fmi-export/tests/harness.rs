@@ -101,14 +101,7 @@ unsafe extern "C" fn capture(
 
 type Fixed =
     unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2String, fmi2Status, fmi2String, fmi2String);
-type Variadic = unsafe extern "C" fn(
-    fmi2ComponentEnvironment,
-    fmi2String,
-    fmi2Status,
-    fmi2String,
-    fmi2String,
-    ...
-);
+type Variadic = fmi_export::ffi::fmi2CallbackLoggerTYPE;
 
 fn callbacks(records: &Records) -> fmi2CallbackFunctions {
     fmi2CallbackFunctions {

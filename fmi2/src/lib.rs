@@ -87,17 +87,18 @@ impl PartialEq<fmi2Status> for Status {
     }
 }
 
-/// `fmi2CallbackLogger`: C-variadic, the message a printf format of the arguments that follow.
-pub type fmi2CallbackLogger = Option<
-    unsafe extern "C" fn(
-        fmi2ComponentEnvironment,
-        fmi2String,
-        fmi2Status,
-        fmi2String,
-        fmi2String,
-        ...
-    ),
->;
+/// The logger's function type: C-variadic, the message a printf format of the arguments that
+/// follow.
+pub type fmi2CallbackLoggerTYPE = unsafe extern "C" fn(
+    fmi2ComponentEnvironment,
+    fmi2String,
+    fmi2Status,
+    fmi2String,
+    fmi2String,
+    ...
+);
+/// `fmi2CallbackLogger` (nullable).
+pub type fmi2CallbackLogger = Option<fmi2CallbackLoggerTYPE>;
 pub type fmi2CallbackAllocateMemory = Option<unsafe extern "C" fn(usize, usize) -> *mut c_void>;
 pub type fmi2CallbackFreeMemory = Option<unsafe extern "C" fn(*mut c_void)>;
 pub type fmi2StepFinished = Option<unsafe extern "C" fn(fmi2ComponentEnvironment, fmi2Status)>;

@@ -45,9 +45,7 @@ impl DcParams {
     /// Gain of the damping term: `ζ` of the closed loop at `zeta` (0 when the loop has that
     /// much damping without it).
     pub fn k_d(&self) -> f64 {
-        let k_e = self.k_dc / self.c;
-        let g = 2.0 * self.g / self.c;
-        (2.0 * self.zeta * (k_e * self.tau).sqrt() - 1.0 - self.tau * g).max(0.0)
+        damping_gain(self.tau, self.c, self.g, self.k_dc, self.zeta)
     }
 
     /// Damping ratio of the loop with the damping gain `k_d`.
@@ -84,6 +82,15 @@ impl DcParams {
         let b = DVector::from_column_slice(&[br, -1.0, 0.0, 0.0]);
         StateSpace::new(a, b, DMatrix::identity(4, 4), DVector::zeros(4)).expect("dc realization")
     }
+}
+
+/// The gain `k_d` of the capacitor-power term that gives the loop of the dc-voltage control
+/// (`k_dc` through the source lag `tau` on the link `c`, `g`) the damping ratio `zeta` (0 when it
+/// has that much without it); the phasor DER's dc model and the EMT controller use it alike.
+pub(crate) fn damping_gain(tau: f64, c: f64, g: f64, k_dc: f64, zeta: f64) -> f64 {
+    let k_e = k_dc / c;
+    let g = 2.0 * g / c;
+    (2.0 * zeta * (k_e * tau).sqrt() - 1.0 - tau * g).max(0.0)
 }
 
 /// Which dc-side limit acts.

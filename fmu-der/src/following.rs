@@ -3,7 +3,7 @@
 use crate::common::{pll_model, Common};
 use crate::common::{Outcome, StepPoint};
 use crate::limits;
-use crate::{err, AdpfKind, Der};
+use crate::{layer, Der};
 use dvpp_control::{GflFpModel, LtiSimulator};
 use fmi_export::{Context, ModelError, Store};
 use serde::{Deserialize, Serialize};
@@ -47,17 +47,7 @@ impl Der {
             budget,
             i_max,
         } = *at;
-        match rt.p_kind {
-            AdpfKind::Static | AdpfKind::LowPass => {
-                g.fp.set_mu(s[self.mu_p]).map_err(|e| err("mu_p", e))?;
-            }
-            AdpfKind::Complement => {
-                g.fp.set_lpf_gains(&lpf[..rt.n_lpf])
-                    .map_err(|e| err("mu_p_lpf", e))?;
-            }
-            // No dc gain: the shape is all there is.
-            AdpfKind::HighPass | AdpfKind::BandPass => {}
-        }
+        layer::set_p_gains(&mut g.fp, rt.p_kind, s[self.mu_p], &lpf[..rt.n_lpf])?;
         let dp = g.fp.step(rt.df_held, h) / to_dvpp;
         // The v-q droop of a current-injecting unit is a loop through the grid's
         // impedance with gain X_th/Dq (about 10 at bus 2 for Dq = 0.01): stable only

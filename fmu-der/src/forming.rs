@@ -3,7 +3,7 @@
 use crate::common::Common;
 use crate::common::{Outcome, StepPoint};
 use crate::limits;
-use crate::{err, AdpfKind, Der};
+use crate::{layer, Der};
 use dvpp_control::{Complex, GfmPfModel};
 use fmi_export::{ModelError, Store};
 use serde::{Deserialize, Serialize};
@@ -61,17 +61,7 @@ impl Der {
             i_max,
             ..
         } = *at;
-        match rt.p_kind {
-            AdpfKind::Static | AdpfKind::LowPass => {
-                f.pf.set_mu(s[self.mu_p]).map_err(|e| err("mu_p", e))?;
-            }
-            AdpfKind::Complement => {
-                f.pf.set_lpf_gains(&lpf[..rt.n_lpf])
-                    .map_err(|e| err("mu_p_lpf", e))?;
-            }
-            // No dc gain: the shape is all there is.
-            AdpfKind::HighPass | AdpfKind::BandPass => {}
-        }
+        layer::set_p_gains(&mut f.pf, rt.p_kind, s[self.mu_p], &lpf[..rt.n_lpf])?;
         // The controls see the power the internal voltage delivers: the measurement
         // plus what the limits withheld. While a current or dc limit episode is on (the
         // current-limited mode, left 1 s after the limit last acted) also the change of
@@ -125,21 +115,23 @@ impl Der {
         let (p_set_rot, q_set_rot) = rt.rot.rotate(p_set, rt.q0);
         let dp = (p_fb - p_set_rot) * to_dvpp;
         s[self.p_ref] = p_set;
-        let (df, df_int) = f.pf.step_with_integral(dp, h);
+        let (df, dtheta) = layer::forming_angle(&mut f.pf, dp, h, s[self.f_nom]);
         s[self.df] = df;
-        f.dtheta = 2.0 * PI * s[self.f_nom] * df_int;
+        f.dtheta = dtheta;
         f.theta += f.dtheta;
         f.dtheta_mean += -(-h / ANGLE_MEAN_TAU).exp_m1() * (f.dtheta - f.dtheta_mean);
         // PI matching controller on E: q tracks the reference held over the step.
         // E within [0, E_max]; the integrator stops while the limit holds (anti-windup).
-        let e = rt.q_ref - q_fb;
-        let e_max = s[self.e_max];
-        let integral = f.e_int + s[self.qpi_ki] * e * h;
-        let unclamped = rt.e0 + s[self.qpi_kp] * e + integral;
-        f.e = unclamped.clamp(0.0, e_max);
-        if unclamped == f.e {
-            f.e_int = integral;
-        }
+        f.e = layer::voltage_matching(
+            &mut f.e_int,
+            rt.q_ref,
+            q_fb,
+            rt.e0,
+            s[self.qpi_kp],
+            s[self.qpi_ki],
+            s[self.e_max],
+            h,
+        );
         rt.q_ref = q_set_rot + rt.vq.step(dv, h) / to_dvpp;
         // Reported as the q at which q' meets its reference at the measured p'.
         s[self.q_ref] = rt.rot.unrotate(p_fb, rt.q_ref).1;

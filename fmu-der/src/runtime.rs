@@ -4,10 +4,11 @@ use crate::common::{pll_model, Common, LimitEpisodes, Startup};
 use crate::dc::{DcParams, DcSide};
 use crate::following::Following;
 use crate::forming::Forming;
+use crate::layer::{self, PfReference};
 use crate::limits;
 use crate::{err, positive, Der, Mode, MAX_LPF};
 use dvpp_control::phasor::internal_voltage;
-use dvpp_control::{Adpf, GflFpModel, GfmPfModel, Hold, LtiSimulator, Rotation, TDes, VqModel};
+use dvpp_control::{Hold, LtiSimulator, Rotation, TDes};
 use fmi_export::{Context, ModelError, Store};
 use serde::{Deserialize, Serialize};
 
@@ -44,12 +45,7 @@ impl Der {
     }
 
     pub(crate) fn available(&self, s: &Store, t: f64) -> f64 {
-        let step = if t >= s[self.avail_t] {
-            s[self.avail_dp]
-        } else {
-            0.0
-        };
-        (s[self.p_avail0] + step).max(0.0)
+        layer::availability(s[self.p_avail0], s[self.avail_t], s[self.avail_dp], t)
     }
 
     pub(crate) fn build(
@@ -97,55 +93,32 @@ impl Der {
         let adpf_p = self.adpf_p.build(s, s[self.mu_p], &lpf)?;
         let adpf_q = self.adpf_q.build(s, s[self.mu_q], &[])?;
         let p_kind = self.adpf_p.kind(s)?;
-        let order_name = self.adpf_p.name("order");
 
         let pll_tau = positive(s, self.pll_tau, "pll.tau")?;
         let pll_order = s[self.pll_order] as u32;
         let mode = Mode::from_code(s[self.mode]).map_err(|e| err("mode", e))?;
-        let (channel, vq) = match mode {
-            Mode::GridForming => {
-                // A grid-forming unit cannot have (near) zero p-f participation: its floor
-                // bounds its p-f stiffness on its own rating (the operator's floor alike).
-                let mu_min = dvpp_control::mu_min_gfm(s[self.s_rated], s[self.s_dvpp]);
-                let adpf = match &adpf_p {
-                    Adpf::LowPass(spec) if spec.mu < mu_min => {
-                        adpf_p.with_mu(mu_min).expect("valid gain")
-                    }
-                    a => a.clone(),
-                };
-                let pf = GfmPfModel::with_floor(&tdes, &adpf, mu_min).map_err(|e| {
-                    err(
-                        &order_name,
-                        format!("the grid-forming reference T_pf/m is not realizable: {e}"),
-                    )
-                })?;
-                pf.check_stability()
-                    .map_err(|e| err(&self.adpf_p.name("kind"), e))?;
-                let vq = VqModel::grid_forming_shaped(&tdes, &adpf_q)
-                    .map_err(|e| err(&self.adpf_q.name("kind"), e))?;
-                let forming = Forming {
-                    pf,
-                    e_int: 0.0,
-                    e: 0.0,
-                    theta: 0.0,
-                    dtheta: 0.0,
-                    dtheta_mean: 0.0,
-                };
-                (Channel::Forming(Box::new(forming)), vq)
-            }
-            Mode::GridFollowing => {
-                let fp = GflFpModel::new(&tdes, &adpf_p, pll_tau, pll_order).map_err(|e| {
-                    err(
-                        "pll.order",
-                        format!("the grid-following reference m T_pf^-1/(tau_pll s + 1)^d is not proper: {e}"),
-                    )
-                })?;
-                fp.check_stability()
-                    .map_err(|e| err(&self.adpf_p.name("kind"), e))?;
-                // The v-q reference keeps a first-order roll-off: more lag in that loop (gain
-                // X_th/Dq) would destabilize it; its dominant lag is `vq.tau`.
-                let vq = VqModel::grid_following_shaped(&tdes, &adpf_q, pll_tau, 1)
-                    .map_err(|e| err(&self.adpf_q.name("kind"), e))?;
+        let (reference, vq) = layer::reference_models(&layer::ReferenceSpec {
+            mode,
+            tdes: &tdes,
+            adpf_p: &adpf_p,
+            adpf_q: &adpf_q,
+            params_p: &self.adpf_p,
+            params_q: &self.adpf_q,
+            s_rated: s[self.s_rated],
+            s_dvpp: s[self.s_dvpp],
+            pll_tau,
+            pll_order,
+        })?;
+        let channel = match reference {
+            PfReference::Forming(pf) => Channel::Forming(Box::new(Forming {
+                pf,
+                e_int: 0.0,
+                e: 0.0,
+                theta: 0.0,
+                dtheta: 0.0,
+                dtheta_mean: 0.0,
+            })),
+            PfReference::Following(fp) => {
                 let (kp, ki) = (s[self.pll_kp], s[self.pll_ki]);
                 if !(kp > 0.0 && ki > 0.0) {
                     return Err(err(
@@ -156,14 +129,13 @@ impl Der {
                 let mut pll = LtiSimulator::new(pll_model(kp, ki, s[self.f_nom]), Hold::Zero);
                 pll.set_state(&[0.0, s[self.v_angle]], s[self.v_angle])
                     .expect("PLL state");
-                let following = Following {
+                Channel::Following(Box::new(Following {
                     fp,
                     pll,
                     current: (0.0, 0.0),
                     dv: 0.0,
                     gains: (kp, ki),
-                };
-                (Channel::Following(Box::new(following)), vq)
+                }))
             }
         };
 

@@ -2,7 +2,7 @@
 
 use crate::common::{Outcome, Startup, StepPoint};
 use crate::runtime::{Channel, Runtime};
-use crate::{err, AdpfKind, Der};
+use crate::{err, layer, AdpfKind, Der};
 use fmi_export::{Context, ModelError, Store};
 
 /// Below this terminal voltage (pu) a grid-following unit's PLL has no angle to lock to: the
@@ -49,21 +49,13 @@ impl Der {
         }
         let lpf = if rt.common.p_kind == AdpfKind::Complement {
             let share = s[self.adpf_p.share.expect("complement parameters")];
-            let n = rt.common.n_lpf;
-            let sum: f64 = lpf[..n].iter().sum();
-            let mut g = lpf;
-            if sum > share + 1e-9 {
-                if !rt.common.warned_gains {
-                    rt.common.warned_gains = true;
-                    ctx.warn(format!(
-                        "mu_p_lpf sums to {sum} > share {share}: scaled down to keep the participation condition"
-                    ));
-                }
-                for x in &mut g[..n] {
-                    *x *= share / sum;
-                }
-            }
-            g
+            layer::closed_gains(
+                lpf,
+                rt.common.n_lpf,
+                share,
+                &mut rt.common.warned_gains,
+                ctx,
+            )
         } else {
             lpf
         };

@@ -16,6 +16,11 @@ pub const FMUS: &[Fmu] = &[
         model: "fmu-der",
     },
     Fmu {
+        package: "fmu-der-emt",
+        id: "dvpp_der_emt",
+        model: "fmu-der/emt",
+    },
+    Fmu {
         package: "fmu-operator",
         id: "dvpp_operator",
         model: "fmu-operator",

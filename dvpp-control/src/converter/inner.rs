@@ -171,8 +171,39 @@ impl InnerLoops {
         if !self.current_limited {
             self.xi_v = self.xi_v + ev * (g.ki_v * h);
         }
-        // Current loop.
-        let ei = self.i_ref - m.i_f;
+        self.current_step(m, self.i_ref, omega, v_m_max, h)
+    }
+
+    /// The current loop alone (a grid-following unit's): the converter voltage that makes the
+    /// converter-side current follow `i_ref`, which is limited to `I_max` first.
+    pub fn current(
+        &mut self,
+        m: &FilterMeasurement,
+        i_ref: Dq,
+        omega: f64,
+        v_m_max: f64,
+        h: f64,
+    ) -> Dq {
+        let n = i_ref.norm();
+        self.current_limited = n > self.i_max;
+        self.i_ref = if self.current_limited {
+            i_ref * (self.i_max / n)
+        } else {
+            i_ref
+        };
+        self.current_step(m, self.i_ref, omega, v_m_max, h)
+    }
+
+    fn current_step(
+        &mut self,
+        m: &FilterMeasurement,
+        i_ref: Dq,
+        omega: f64,
+        v_m_max: f64,
+        h: f64,
+    ) -> Dq {
+        let g = self.gains;
+        let ei = i_ref - m.i_f;
         let ff = m.v_c + m.i_f.rot90() * (omega * self.data.l_f);
         let raw = ff + ei * g.kp_i + self.xi_i;
         let n = raw.norm();
@@ -183,6 +214,12 @@ impl InnerLoops {
         } else {
             raw * (v_m_max / n)
         }
+    }
+
+    /// Retune both loops for `design` (the integrals carry on).
+    pub fn redesign(&mut self, design: &InnerDesign, omega_b: f64) {
+        self.gains = design.gains(&self.data, omega_b);
+        self.i_max = design.i_max;
     }
 }
 

@@ -29,6 +29,6 @@ pub mod pll;
 
 pub use filter::{ConverterData, Lcl};
 pub use frame::{Abc, Dq};
-pub use inner::{InnerDesign, InnerLoops};
+pub use inner::{FilterMeasurement, InnerDesign, InnerLoops};
 pub use pi::Pi;
 pub use pll::Pll;

@@ -1,0 +1,412 @@
+//! The EMT-level controller's runtime: initialization from the measured operating point, and one sample of the DVPP layer, the inner loops and the dc-voltage command.
+
+use super::DerEmt;
+use crate::dc::damping_gain;
+use crate::layer::{self, PfReference};
+use crate::{err, positive, AdpfKind, Mode};
+use dvpp_control::converter::{
+    Abc, ConverterData, Dq, FilterMeasurement, InnerDesign, InnerLoops, Pll,
+};
+use dvpp_control::{TDes, VqModel};
+use fmi_export::{Context, ModelError, Store};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// The converter voltage's floor in the modulation (pu of `v_dc*`): below it the dc link is
+/// taken as empty and the modulation saturates rather than divide by zero.
+const V_DC_FLOOR: f64 = 0.05;
+
+/// Grid-following: time constant (s) of the voltages the current reference is computed from.
+/// The reference `conj(S/v_g) + jωC_f v_c` taken from the instantaneous voltages closes a loop
+/// through the LCL resonance (710 Hz) that the current loop's 1.5 samples of delay make
+/// unstable (measured: a 50 µs, 800 Hz loop diverges from rounding noise within 30 ms); the
+/// lag keeps the reference an outer-loop quantity, as the phasor DER's references are.
+const REFERENCE_TAU: f64 = 1e-3;
+
+/// Everything `initialize` builds, and the controller's state.
+#[derive(Clone, Serialize, Deserialize)]
+pub(crate) struct Runtime {
+    mode: Mode,
+    pf: PfReference,
+    vq: VqModel,
+    p_kind: AdpfKind,
+    q_kind: AdpfKind,
+    n_lpf: usize,
+    inner: InnerLoops,
+    design: InnerDesign,
+    /// Grid-following: the PLL on the grid-side voltage.
+    pll: Option<Pll>,
+    /// Grid-forming: the frame's angle beyond `ω_b t` (rad).
+    theta: f64,
+    /// The frequency deviation of the frame (pu), held over the next step.
+    df: f64,
+    /// Grid-forming PI matching controller: integral, output, start value.
+    e_int: f64,
+    e: f64,
+    e0: f64,
+    /// The operating point at initialization (pu on S_base; `v0` pu).
+    p0: f64,
+    q0: f64,
+    v0: f64,
+    /// The reactive reference held over the next step (S_base).
+    q_ref: f64,
+    /// Grid-following: the voltage deviation through `vq.tau`.
+    dv_lag: f64,
+    /// Grid-following: the grid-side and capacitor voltages through `REFERENCE_TAU` (dq, PLL
+    /// frame), from which the current reference is computed.
+    vg_lag: Dq,
+    vc_lag: Dq,
+    /// The converter voltage the last output asked for (dq, pu), for the converter power.
+    v_m: Dq,
+    /// The dc source's current as the controller models it (its command through `τ_dc`).
+    i_src: f64,
+    k_d: f64,
+    warned_gains: bool,
+}
+
+/// The three phases of an input or output.
+fn abc(s: &Store, r: &[fmi_export::Real; 3]) -> Abc {
+    Abc {
+        a: s[r[0]],
+        b: s[r[1]],
+        c: s[r[2]],
+    }
+}
+
+impl DerEmt {
+    fn data(&self, s: &Store) -> ConverterData {
+        ConverterData {
+            c_dc: s[self.c_dc],
+            g_dc: s[self.g_dc],
+            r_f: s[self.r_f],
+            l_f: s[self.l_f],
+            c_f: s[self.c_f],
+            r_t: s[self.r_t],
+            l_t: s[self.l_t],
+            kp_pll: s[self.pll_kp],
+            ki_pll: s[self.pll_ki],
+            k_dc: s[self.k_dc],
+            v_dc_ratio: s[self.vdc_ratio],
+        }
+    }
+
+    fn design(&self, s: &Store) -> InnerDesign {
+        InnerDesign {
+            current_hz: s[self.current_hz],
+            voltage_hz: s[self.voltage_hz],
+            zero_ratio: s[self.zero_ratio],
+            i_max: s[self.i_max],
+        }
+    }
+
+    fn omega_b(&self, s: &Store) -> f64 {
+        2.0 * PI * s[self.f_nom]
+    }
+
+    /// The filter measurement in the frame at `rho`.
+    fn measure(&self, s: &Store, rho: f64) -> FilterMeasurement {
+        FilterMeasurement {
+            v_c: abc(s, &self.v_abc).to_dq(rho),
+            i_f: abc(s, &self.i_abc).to_dq(rho),
+            i_g: abc(s, &self.ig_abc).to_dq(rho),
+        }
+    }
+
+    /// The voltage at the MV side of the transformer, `v_c - (R_t + j ω L_t) i_g` (the
+    /// phasor relation in the frame turning at `omega` pu).
+    fn grid_voltage(&self, s: &Store, m: &FilterMeasurement, omega: f64) -> Dq {
+        m.v_c - m.i_g * s[self.r_t] - m.i_g.rot90() * (omega * s[self.l_t])
+    }
+
+    fn available(&self, s: &Store, t: f64) -> f64 {
+        layer::availability(s[self.p_avail0], s[self.avail_t], s[self.avail_dp], t)
+    }
+
+    pub(crate) fn build(&self, s: &mut Store, ctx: &mut Context) -> Result<Runtime, ModelError> {
+        for (r, name) in [
+            (self.s_rated, "S_rated"),
+            (self.s_base, "S_base"),
+            (self.s_dvpp, "S_dvpp"),
+            (self.f_nom, "f_nom"),
+            (self.l_f, "L_f"),
+            (self.c_f, "C_f"),
+            (self.vdc_ratio, "vdc_ratio"),
+            (self.current_hz, "inner.current_hz"),
+            (self.voltage_hz, "inner.voltage_hz"),
+            (self.zero_ratio, "inner.zero_ratio"),
+            (self.i_max, "I_max"),
+            (self.t_s, "t_s"),
+            (self.tau_dc, "tau_dc"),
+            (self.c_dc, "C_dc"),
+        ] {
+            positive(s, r, name)?;
+        }
+        let (h, d) = (s[self.h], s[self.d]);
+        if !(h >= 0.0 && (h == 0.0 || h.is_normal())) {
+            return Err(err(
+                "Tdes.H",
+                format!("= {h}: T_pf = 1/(H s + D) needs H >= 0"),
+            ));
+        }
+        if d <= 0.0 {
+            return Err(err(
+                "Tdes.D",
+                format!("= {d}: T_pf = 1/(H s + D) is not stable (needs D > 0)"),
+            ));
+        }
+        let dq = positive(s, self.dq, "Tdes.Dq")?;
+        let tau_q = positive(s, self.tau_q, "Tdes.tau_q")?;
+        let tdes = TDes::inertia_droop(h, d, dq, tau_q).map_err(|e| err("Tdes", e))?;
+        let lpf = self.lpf_gains(s);
+        let adpf_p = self.adpf_p.build(s, s[self.mu_p], &lpf)?;
+        let adpf_q = self.adpf_q.build(s, s[self.mu_q], &[])?;
+        let mode = Mode::from_code(s[self.mode]).map_err(|e| err("mode", e))?;
+        let (pf, vq) = layer::reference_models(&layer::ReferenceSpec {
+            mode,
+            tdes: &tdes,
+            adpf_p: &adpf_p,
+            adpf_q: &adpf_q,
+            params_p: &self.adpf_p,
+            params_q: &self.adpf_q,
+            s_rated: s[self.s_rated],
+            s_dvpp: s[self.s_dvpp],
+            pll_tau: positive(s, self.pll_tau, "pll.tau")?,
+            pll_order: s[self.pll_order] as u32,
+        })?;
+        let omega_b = self.omega_b(s);
+        let data = self.data(s);
+        let design = self.design(s);
+        let mut inner = InnerLoops::new(&design, data, omega_b);
+
+        // The measured operating point, taken as a steady state: the frame starts on the
+        // capacitor voltage (grid-forming) or on the grid-side voltage (grid-following).
+        let at_zero = self.measure(s, 0.0);
+        let rho = match mode {
+            Mode::GridForming => at_zero.v_c.q.atan2(at_zero.v_c.d),
+            Mode::GridFollowing => {
+                let vg = self.grid_voltage(s, &at_zero, 1.0);
+                vg.q.atan2(vg.d)
+            }
+        };
+        let m = self.measure(s, rho);
+        if m.v_c.norm() < 0.1 {
+            return Err(ModelError(format!(
+                "the measured capacitor voltage is {:.4} pu: the controller starts from a running converter (set the start values of v_a, v_b, v_c to the operating point)",
+                m.v_c.norm()
+            )));
+        }
+        let vg = self.grid_voltage(s, &m, 1.0);
+        let to_base = s[self.s_rated] / s[self.s_base];
+        let (p0, q0) = (vg.p(m.i_g) * to_base, vg.q(m.i_g) * to_base);
+        let v_m = m.v_c + m.i_f * data.r_f + m.i_f.rot90() * data.l_f;
+        inner.settle(&m, v_m, 1.0);
+        let pll = (mode == Mode::GridFollowing)
+            .then(|| Pll::new(s[self.pll_kp], s[self.pll_ki], omega_b, rho));
+        let v_dc = s[self.v_dc];
+        let p_conv = v_m.p(m.i_f);
+        let i_src = (p_conv + data.g_dc * v_dc * v_dc) / v_dc.max(V_DC_FLOOR);
+        let rt = Runtime {
+            mode,
+            pf,
+            vq,
+            p_kind: self.adpf_p.kind(s)?,
+            q_kind: self.adpf_q.kind(s)?,
+            n_lpf: self.adpf_p.n_lpf.map_or(0, |n| s[n] as usize),
+            inner,
+            design,
+            pll,
+            theta: rho,
+            df: 0.0,
+            e_int: 0.0,
+            e: m.v_c.d,
+            e0: m.v_c.d,
+            p0,
+            q0,
+            v0: vg.norm(),
+            q_ref: q0,
+            dv_lag: 0.0,
+            vg_lag: vg,
+            vc_lag: m.v_c,
+            v_m,
+            i_src,
+            k_d: damping_gain(
+                s[self.tau_dc],
+                data.c_dc,
+                data.g_dc,
+                data.k_dc,
+                s[self.dc_zeta],
+            ),
+            warned_gains: false,
+        };
+        let limit = self.headroom(s, 0.0);
+        if p0 > limit + 1e-12 {
+            ctx.warn(format!(
+                "dispatch p = {p0:.4} pu is above deload * P_avail - G_dc = {limit:.4} pu: the set point is curtailed from the first step"
+            ));
+        }
+        self.write_modulation(s, &rt, rho + 0.5 * s[self.t_s] * omega_b);
+        s[self.i_dc_ref] = i_src;
+        s[self.p] = p0;
+        s[self.q] = q0;
+        s[self.v] = rt.v0;
+        s[self.df] = 0.0;
+        s[self.theta] = rho;
+        s[self.e] = rt.e;
+        s[self.p_set] = p0.min(limit);
+        s[self.q_ref] = q0;
+        s[self.p_avail] = self.available(s, 0.0);
+        s[self.i_ac] = m.i_f.norm();
+        s[self.limit_current] = false;
+        s[self.limit_modulation] = false;
+        s[self.limit_source] = false;
+        Ok(rt)
+    }
+
+    /// The highest set point the primary source allows at `t`: `deload · P_avail - G_dc`, on S_base.
+    fn headroom(&self, s: &Store, t: f64) -> f64 {
+        s[self.deload] * self.available(s, t) - s[self.g_dc] * s[self.s_rated] / s[self.s_base]
+    }
+
+    /// The modulation for the converter voltage `rt.v_m` at the frame angle `rho`.
+    fn write_modulation(&self, s: &mut Store, rt: &Runtime, rho: f64) {
+        let scale = 0.5 * s[self.vdc_ratio] * s[self.v_dc].max(V_DC_FLOOR);
+        let v = rt.v_m.to_abc(rho);
+        for (r, x) in self.m_abc.iter().zip([v.a, v.b, v.c]) {
+            s[*r] = (x / scale).clamp(-1.0, 1.0);
+        }
+    }
+
+    /// One sample: measurements at `t`, commands for the step that starts at `t + h`.
+    pub(crate) fn step(
+        &self,
+        rt: &mut Runtime,
+        s: &mut Store,
+        t: f64,
+        h: f64,
+        ctx: &mut Context,
+    ) -> Result<(), ModelError> {
+        let omega_b = self.omega_b(s);
+        let design = self.design(s);
+        if design != rt.design {
+            rt.inner.redesign(&design, omega_b);
+            rt.design = design;
+            ctx.event(format!(
+                "inner loops retuned at t = {t}: current {} Hz, voltage {} Hz, I_max {}",
+                design.current_hz, design.voltage_hz, design.i_max
+            ));
+        }
+        // The frame at t: grid-forming from the reference model's angle, grid-following the PLL's.
+        let rho = match &rt.pll {
+            Some(pll) => pll.theta(),
+            None => (omega_b * t).rem_euclid(2.0 * PI) + rt.theta,
+        };
+        let omega = 1.0 + rt.df;
+        let m = self.measure(s, rho);
+        let vg = self.grid_voltage(s, &m, omega);
+        let to_base = s[self.s_rated] / s[self.s_base];
+        let to_dvpp = s[self.s_base] / s[self.s_dvpp];
+        let (p, q, v) = (vg.p(m.i_g) * to_base, vg.q(m.i_g) * to_base, vg.norm());
+        let dv = v - rt.v0;
+
+        // The operator's dc gains.
+        if rt.q_kind.has_dc_gain() {
+            rt.vq.set_mu(s[self.mu_q]).map_err(|e| err("mu_q", e))?;
+        }
+        let mut lpf = self.lpf_gains(s);
+        if rt.p_kind == AdpfKind::Complement {
+            let share = s[self.adpf_p.share.expect("complement parameters")];
+            lpf = layer::closed_gains(lpf, rt.n_lpf, share, &mut rt.warned_gains, ctx);
+        }
+        let p_set = rt.p0.min(self.headroom(s, t));
+        let v_dc = s[self.v_dc];
+        let v_m_max = 0.5 * s[self.vdc_ratio] * v_dc.max(0.0);
+        let (v_m, df_next) = match &mut rt.pf {
+            PfReference::Forming(pf) => {
+                layer::set_p_gains(pf, rt.p_kind, s[self.mu_p], &lpf[..rt.n_lpf])?;
+                let (df, dtheta) =
+                    layer::forming_angle(pf, (p - p_set) * to_dvpp, h, s[self.f_nom]);
+                rt.e = layer::voltage_matching(
+                    &mut rt.e_int,
+                    rt.q_ref,
+                    q,
+                    rt.e0,
+                    s[self.qpi_kp],
+                    s[self.qpi_ki],
+                    s[self.e_max],
+                    h,
+                );
+                rt.q_ref = rt.q0 + rt.vq.step(dv, h) / to_dvpp;
+                rt.theta += dtheta;
+                let v_ref = Dq { d: rt.e, q: 0.0 };
+                (rt.inner.step(&m, v_ref, omega, v_m_max, h), df)
+            }
+            PfReference::Following(fp) => {
+                layer::set_p_gains(fp, rt.p_kind, s[self.mu_p], &lpf[..rt.n_lpf])?;
+                let dp = fp.step(rt.df, h) / to_dvpp;
+                let tau_v = s[self.vq_tau];
+                let kv = if tau_v > 0.0 {
+                    -(-h / tau_v).exp_m1()
+                } else {
+                    1.0
+                };
+                rt.dv_lag += kv * (dv - rt.dv_lag);
+                rt.q_ref = rt.q0 + rt.vq.step(rt.dv_lag, h) / to_dvpp;
+                // The grid-side current for the references at the measured voltage, plus the
+                // capacitor's current: the converter-side current reference.
+                let k = -(-h / REFERENCE_TAU).exp_m1();
+                rt.vg_lag = rt.vg_lag + (vg - rt.vg_lag) * k;
+                rt.vc_lag = rt.vc_lag + (m.v_c - rt.vc_lag) * k;
+                let (pr, qr) = ((p_set + dp) / to_base, rt.q_ref / to_base);
+                let u = rt.vg_lag;
+                let n2 = (u.d * u.d + u.q * u.q).max(1e-4);
+                let i_g = Dq {
+                    d: (u.d * pr + u.q * qr) / n2,
+                    q: (u.q * pr - u.d * qr) / n2,
+                };
+                let i_ref = i_g + rt.vc_lag.rot90() * (omega * s[self.c_f]);
+                let v_m = rt.inner.current(&m, i_ref, omega, v_m_max, h);
+                let pll = rt.pll.as_mut().expect("grid-following PLL");
+                pll.kp = s[self.pll_kp];
+                pll.ki = s[self.pll_ki];
+                pll.step(rt.vg_lag.to_abc(rho), h);
+                (v_m, pll.delta_f())
+            }
+        };
+        // The dc-voltage command: converter power and link losses fed forward, k_dc on the
+        // stored energy, the damping term on the capacitor's power (as the phasor DER).
+        let p_conv = rt.v_m.p(m.i_f);
+        let (c_dc, g_dc) = (s[self.c_dc], s[self.g_dc]);
+        let stored = 0.5 * c_dc * (v_dc * v_dc - 1.0);
+        let charging = rt.i_src * v_dc - g_dc * v_dc * v_dc - p_conv;
+        let command =
+            p_conv + g_dc * v_dc * v_dc - s[self.k_dc] / c_dc * stored - rt.k_d * charging;
+        let cap = self.available(s, t + h) / to_base;
+        let floor = if s[self.storage] { -cap } else { 0.0 };
+        let source = command > cap || command < floor;
+        let i_cmd = command.clamp(floor, cap) / v_dc.max(V_DC_FLOOR);
+        rt.i_src += -(-h / s[self.tau_dc]).exp_m1() * (i_cmd - rt.i_src);
+
+        rt.v_m = v_m;
+        rt.df = df_next;
+        let rho_out = rho + 1.5 * h * omega_b * (1.0 + df_next);
+        self.write_modulation(s, rt, rho_out);
+        s[self.i_dc_ref] = i_cmd;
+        s[self.p] = p;
+        s[self.q] = q;
+        s[self.v] = v;
+        s[self.df] = df_next;
+        s[self.theta] = match &rt.pll {
+            Some(pll) => (pll.theta() - omega_b * (t + h) + PI).rem_euclid(2.0 * PI) - PI,
+            None => rt.theta,
+        };
+        s[self.e] = rt.e;
+        s[self.p_set] = p_set;
+        s[self.q_ref] = rt.q_ref;
+        s[self.p_avail] = self.available(s, t + h);
+        s[self.i_ac] = m.i_f.norm();
+        s[self.limit_current] = rt.inner.current_limited();
+        s[self.limit_modulation] = rt.inner.modulation_limited();
+        s[self.limit_source] = source;
+        Ok(())
+    }
+}

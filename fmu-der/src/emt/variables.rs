@@ -1,0 +1,538 @@
+//! The EMT-level controller's variables: every parameter, measurement, command and monitoring output, with its start value.
+
+use super::DerEmt;
+use crate::adpf::AdpfParams;
+use crate::{ports, DerConfig, UnitDefaults, MAX_LPF};
+use dvpp_control::converter::{ConverterData, InnerDesign};
+use fmi_export::{Spec, Variables};
+
+/// Phase suffixes of the three-phase connectors.
+const PHASES: [&str; 3] = ["a", "b", "c"];
+
+/// The measurement inputs, the initial dependencies of every output.
+const MEASUREMENTS: [&str; 10] = [
+    "v_a", "v_b", "v_c", "i_a", "i_b", "i_c", "ig_a", "ig_b", "ig_c", "v_dc",
+];
+
+impl DerEmt {
+    /// The controller's variables for `config` (its preset's start values).
+    pub(crate) fn declare_variables(
+        config: &DerConfig,
+        v: &mut Variables,
+    ) -> Result<DerEmt, String> {
+        let u = UnitDefaults::of(config.preset).resized(config.rating)?;
+        let paper = ConverterData::PAPER;
+        let inner = InnerDesign::default();
+        let par = |v: &mut Variables, name: &str, start: f64, unit: &str, desc: &str, min: f64| {
+            v.real(Spec::parameter(name, start, unit, desc).min(min))
+        };
+        let tun = |v: &mut Variables, name: &str, start: f64, unit: &str, desc: &str, min: f64| {
+            v.real(Spec::parameter(name, start, unit, desc).min(min).tunable())
+        };
+        let s_rated = par(
+            v,
+            ports::S_RATED,
+            u.s_rated,
+            "MVA",
+            "converter rating",
+            1e-3,
+        );
+        let s_base = par(
+            v,
+            "S_base",
+            100.0,
+            "MVA",
+            "system base power (of p, q, P_avail)",
+            1e-3,
+        );
+        let s_dvpp = par(
+            v,
+            ports::S_DVPP,
+            96.0,
+            "MVA",
+            "DVPP base power T_des is specified on",
+            1e-3,
+        );
+        let f_nom = par(v, "f_nom", 50.0, "Hz", "nominal frequency", 1e-3);
+        let mode = v.integer(
+            Spec::parameter(
+                ports::MODE,
+                u.mode.code(),
+                "",
+                "1 = grid-forming, 2 = grid-following",
+            )
+            .range(1.0, 2.0),
+        );
+        let h = par(
+            v,
+            ports::TDES_H,
+            5.55,
+            "s",
+            "virtual inertia of T_pf = 1/(H s + D)",
+            0.0,
+        );
+        let d = par(
+            v,
+            ports::TDES_D,
+            33.33,
+            "pu",
+            "damping (droop gain) of T_pf = 1/(H s + D)",
+            0.0,
+        );
+        let dq = par(
+            v,
+            ports::TDES_DQ,
+            0.01,
+            "pu",
+            "q-v droop of T_qv = Dq (dv = -Dq dq)",
+            0.0,
+        );
+        let tau_q = par(
+            v,
+            "Tdes.tau_q",
+            0.01,
+            "s",
+            "roll-off 1/(tau_q s + 1) of the inverse q-v reference",
+            0.0,
+        );
+        let adpf_p = AdpfParams::declare(v, "p", &u.adpf_p, true);
+        let adpf_q = AdpfParams::declare(v, "q", &u.adpf_q, false);
+        let pll_kp = par(
+            v,
+            "pll.kp",
+            paper.kp_pll,
+            "1/s",
+            "PLL proportional gain (grid-following)",
+            1e-6,
+        );
+        let pll_ki = par(
+            v,
+            "pll.ki",
+            paper.ki_pll,
+            "1/s2",
+            "PLL integral gain (grid-following)",
+            1e-6,
+        );
+        let pll_tau = par(
+            v,
+            "pll.tau",
+            1.0 / 60.0,
+            "s",
+            "roll-off time constant tau_pll of the grid-following references",
+            0.0,
+        );
+        let pll_order = v.integer(
+            Spec::parameter(
+                "pll.order",
+                2,
+                "",
+                "order d of the grid-following p-f roll-off 1/(tau_pll s + 1)^d",
+            )
+            .range(0.0, 4.0),
+        );
+        let qpi_kp = tun(
+            v,
+            "qpi.kp",
+            0.05,
+            "pu",
+            "grid-forming PI matching controller: proportional gain from the q error to the capacitor-voltage reference E",
+            0.0,
+        );
+        let qpi_ki = tun(
+            v,
+            "qpi.ki",
+            5.0,
+            "1/s",
+            "grid-forming PI matching controller: integral gain from the q error to E",
+            0.0,
+        );
+        let e_max = tun(
+            v,
+            "E_max",
+            1.2,
+            "pu",
+            "grid-forming: largest capacitor-voltage reference E the matching controller sets",
+            0.0,
+        );
+        let vq_tau = tun(
+            v,
+            "vq.tau",
+            0.5,
+            "s",
+            "grid-following: time constant of the voltage deviation ahead of the v-q droop (as the phasor DER); 0 = none",
+            0.0,
+        );
+        let filter = |v: &mut Variables, name: &str, start: f64, desc: &str, min: f64| {
+            par(v, name, start, "pu", &format!("{desc}, pu on S_rated"), min)
+        };
+        let r_f = filter(v, "R_f", paper.r_f, "filter resistance", 0.0);
+        let l_f = filter(
+            v,
+            "L_f",
+            paper.l_f,
+            "filter inductance (its reactance at f_nom)",
+            1e-6,
+        );
+        let c_f = filter(
+            v,
+            "C_f",
+            paper.c_f,
+            "filter capacitance (its susceptance at f_nom)",
+            1e-6,
+        );
+        let r_t = filter(v, "R_t", paper.r_t, "LV/MV transformer resistance", 0.0);
+        let l_t = filter(
+            v,
+            "L_t",
+            paper.l_t,
+            "LV/MV transformer leakage inductance (its reactance at f_nom)",
+            0.0,
+        );
+        let vdc_ratio = par(
+            v,
+            "vdc_ratio",
+            paper.v_dc_ratio,
+            "1",
+            "nominal dc voltage over the rated phase-to-neutral peak voltage, v_dc*/v_r: the converter's phase voltage is m * v_dc * vdc_ratio/2",
+            1e-3,
+        );
+        let current_hz = tun(
+            v,
+            "inner.current_hz",
+            inner.current_hz,
+            "Hz",
+            "bandwidth of the converter-current PI loop (k_p = w L_f, k_i = w R_f: the loop is w/s)",
+            1e-3,
+        );
+        let voltage_hz = tun(
+            v,
+            "inner.voltage_hz",
+            inner.voltage_hz,
+            "Hz",
+            "bandwidth of the capacitor-voltage PI loop (k_p = w C_f)",
+            1e-3,
+        );
+        let zero_ratio = tun(
+            v,
+            "inner.zero_ratio",
+            inner.zero_ratio,
+            "1",
+            "capacitor-voltage loop: its crossover over its PI zero (k_i = k_p w/zero_ratio)",
+            1e-3,
+        );
+        let i_max = tun(
+            v,
+            "I_max",
+            inner.i_max,
+            "pu",
+            "current limit: the converter-current reference's magnitude, pu of the rated current",
+            1e-3,
+        );
+        let t_s = par(
+            v,
+            "t_s",
+            50e-6,
+            "s",
+            "the host's step, for the output at initialization only (later outputs use the step the host takes)",
+            1e-9,
+        );
+        let tau_dc = par(
+            v,
+            "tau_dc",
+            u.tau_dc,
+            "s",
+            "time constant of the dc source following its command",
+            0.0,
+        );
+        let c_dc = par(
+            v,
+            "C_dc",
+            0.096,
+            "pu",
+            "dc-link capacitance on S_rated",
+            0.0,
+        );
+        let g_dc = par(
+            v,
+            "G_dc",
+            0.05,
+            "pu",
+            "dc-link conductance (losses) on S_rated",
+            0.0,
+        );
+        let k_dc = par(
+            v,
+            "k_dc",
+            paper.k_dc,
+            "pu",
+            "dc-voltage control gain (source power per pu of v_dc deviation)",
+            0.0,
+        );
+        let dc_zeta = v.real(
+            Spec::parameter(
+                "dc.zeta",
+                0.7,
+                "1",
+                "damping ratio the dc-voltage control's capacitor-power term gives the k_dc, C_dc, tau_dc loop (0: no damping term)",
+            )
+            .range(0.0, 2.0),
+        );
+        let storage = v.boolean(Spec::parameter(
+            "storage",
+            u.storage,
+            "",
+            "the primary source can absorb power (a battery): dc command within [-P_avail, P_avail] instead of [0, P_avail]",
+        ));
+        let deload = v.real(
+            Spec::parameter(
+                "deload",
+                1.0,
+                "1",
+                "deloading: the set point stays at or below deload * P_avail - G_dc",
+            )
+            .range(1e-3, 1.0)
+            .tunable(),
+        );
+        let p_avail0 = tun(
+            v,
+            ports::P_AVAIL0,
+            u.p_avail0,
+            "pu",
+            "available active power of the primary source, on S_base",
+            0.0,
+        );
+        let avail_t = v.real(
+            Spec::parameter("avail.t_step", 1.0, "s", "time of the availability step").tunable(),
+        );
+        let avail_dp = v.real(
+            Spec::parameter(
+                "avail.dP",
+                0.0,
+                "pu",
+                "availability step on S_base (negative = less available power)",
+            )
+            .tunable(),
+        );
+        let three = |v: &mut Variables, prefix: &str, desc: &str| {
+            PHASES.map(|ph| {
+                v.real(Spec::input(
+                    &format!("{prefix}_{ph}"),
+                    0.0,
+                    "pu",
+                    &format!("{desc}, phase {ph}"),
+                ))
+            })
+        };
+        let v_abc = three(
+            v,
+            "v",
+            "measured filter-capacitor voltage, pu of the rated phase-to-neutral peak",
+        );
+        let i_abc = three(
+            v,
+            "i",
+            "measured converter-side filter current, pu of the rated peak current",
+        );
+        let ig_abc = three(
+            v,
+            "ig",
+            "measured grid-side (transformer) current toward the grid, pu of the rated peak current",
+        );
+        let v_dc = v.real(
+            Spec::input(
+                "v_dc",
+                1.0,
+                "pu",
+                "measured dc-link voltage, pu of its nominal v_dc*",
+            )
+            .min(0.0),
+        );
+        let mu_p = v.real(
+            Spec::input(
+                ports::MU_P,
+                u.mu_p,
+                "1",
+                "ADPF dc gain of the p-f channel from the operator (static, low-pass)",
+            )
+            .range(0.0, 1.0),
+        );
+        let mu_q = v.real(
+            Spec::input(
+                ports::MU_Q,
+                u.mu_q,
+                "1",
+                "ADPF dc gain of the v-q channel from the operator (static, low-pass)",
+            )
+            .range(0.0, 1.0),
+        );
+        let mu_p_lpf = (1..=MAX_LPF)
+            .map(|k| {
+                v.real(
+                    Spec::input(
+                        &ports::mu_p_lpf(k),
+                        u.mu_p_lpf.get(k - 1).copied().unwrap_or(0.0),
+                        "1",
+                        &format!("complement unit: dc gain of low-pass unit {k} it closes"),
+                    )
+                    .range(0.0, 1.0),
+                )
+            })
+            .collect();
+        let out = |v: &mut Variables, name: &str, unit: &str, desc: &str| {
+            v.real(Spec::output(name, unit, desc).initial_dependencies(&MEASUREMENTS))
+        };
+        let m_abc = PHASES.map(|ph| {
+            out(
+                v,
+                &format!("m_{ph}"),
+                "1",
+                &format!("modulation index of phase {ph}, within [-1, 1]: the converter's phase voltage is m * v_dc * vdc_ratio/2 (pu of v_r); for the step after this output"),
+            )
+        });
+        let i_dc_ref = out(
+            v,
+            "i_dc_ref",
+            "pu",
+            "current command to the primary (dc) source, pu of S_rated/v_dc*, within its availability",
+        );
+        let p = out(
+            v,
+            ports::P,
+            "pu",
+            "active power into the grid at the MV side of the transformer, on S_base (computed from v_c and i_g)",
+        );
+        let q = out(
+            v,
+            ports::Q,
+            "pu",
+            "reactive power into the grid at the MV side of the transformer, on S_base",
+        );
+        let vv = out(
+            v,
+            ports::V,
+            "pu",
+            "voltage magnitude at the MV side of the transformer, pu of nominal",
+        );
+        let df = out(
+            v,
+            "df",
+            "pu",
+            "the unit's frequency deviation, pu of f_nom (grid-forming: its frame's; grid-following: the PLL's)",
+        );
+        let theta = out(
+            v,
+            ports::THETA,
+            "rad",
+            "the frame's angle beyond 2 pi f_nom t (grid-forming: from m^-1 T_pf; grid-following: the PLL's)",
+        );
+        let e = out(
+            v,
+            ports::E,
+            "pu",
+            "grid-forming: the capacitor-voltage reference magnitude the matching controller sets",
+        );
+        let p_set = out(
+            v,
+            ports::P_SET,
+            "pu",
+            "the active set point on S_base: the dispatch (p at initialization), curtailed to deload * P_avail - G_dc",
+        );
+        let q_ref = out(
+            v,
+            ports::Q_REF,
+            "pu",
+            "the reactive power reference on S_base (q0 - T_vq dv)",
+        );
+        let p_avail = out(
+            v,
+            ports::P_AVAIL,
+            "pu",
+            "available active power of the primary source, on S_base",
+        );
+        let i_ac = out(
+            v,
+            ports::I_AC,
+            "pu",
+            "magnitude of the converter-side current, pu of the rated current",
+        );
+        let flag =
+            |v: &mut Variables, name: &str, desc: &str| v.boolean(Spec::boolean_output(name, desc));
+        Ok(DerEmt {
+            mode,
+            s_rated,
+            s_base,
+            s_dvpp,
+            f_nom,
+            h,
+            d,
+            dq,
+            tau_q,
+            adpf_p,
+            adpf_q,
+            pll_kp,
+            pll_ki,
+            pll_tau,
+            pll_order,
+            qpi_kp,
+            qpi_ki,
+            e_max,
+            vq_tau,
+            r_f,
+            l_f,
+            c_f,
+            r_t,
+            l_t,
+            vdc_ratio,
+            current_hz,
+            voltage_hz,
+            zero_ratio,
+            i_max,
+            t_s,
+            tau_dc,
+            c_dc,
+            g_dc,
+            k_dc,
+            dc_zeta,
+            storage,
+            deload,
+            p_avail0,
+            avail_t,
+            avail_dp,
+            v_abc,
+            i_abc,
+            ig_abc,
+            v_dc,
+            mu_p,
+            mu_q,
+            mu_p_lpf,
+            m_abc,
+            i_dc_ref,
+            p,
+            q,
+            v: vv,
+            df,
+            theta,
+            e,
+            p_set,
+            q_ref,
+            p_avail,
+            i_ac,
+            limit_current: flag(
+                v,
+                "limit.current",
+                "the converter-current reference is held at I_max",
+            ),
+            limit_modulation: flag(
+                v,
+                "limit.modulation",
+                "the converter voltage is held at the modulation limit",
+            ),
+            limit_source: flag(
+                v,
+                "limit.source",
+                "the dc command is held at the primary source's availability",
+            ),
+            rt: None,
+        })
+    }
+}

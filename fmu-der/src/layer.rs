@@ -1,0 +1,187 @@
+//! The DVPP layer both DER controllers run, the phasor outer loop (`Der`) and the converter at EMT level (`emt::DerEmt`): reference models, dc gains, set point, grid-forming angle and voltage matching.
+//!
+//! Written once here so that a unit behaves the same at both levels of modelling; each
+//! controller adds only what its level needs (the phasor one its output-stage limits and dc-link
+//! model, the EMT one its dq frame, inner loops and dc-voltage command).
+
+use crate::adpf::AdpfParams;
+use crate::{err, AdpfKind, Mode, MAX_LPF};
+use dvpp_control::{Adpf, GflFpModel, GfmPfModel, TDes, VqModel};
+use fmi_export::{Context, ModelError};
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// The p-f reference model of the unit's mode.
+#[derive(Clone, Serialize, Deserialize)]
+pub(crate) enum PfReference {
+    /// Grid-forming: `Δf = -(T_pf/m) Δp` (on S_dvpp).
+    Forming(GfmPfModel),
+    /// Grid-following: `Δp = -m T_pf⁻¹ Δf`, rolled off behind the PLL.
+    Following(GflFpModel),
+}
+
+/// What the reference models are built from.
+pub(crate) struct ReferenceSpec<'a> {
+    pub(crate) mode: Mode,
+    pub(crate) tdes: &'a TDes,
+    pub(crate) adpf_p: &'a Adpf,
+    pub(crate) adpf_q: &'a Adpf,
+    /// Their parameters, for the names in errors.
+    pub(crate) params_p: &'a AdpfParams,
+    pub(crate) params_q: &'a AdpfParams,
+    pub(crate) s_rated: f64,
+    pub(crate) s_dvpp: f64,
+    /// Grid-following roll-off `1/(τ_pll s + 1)^d`.
+    pub(crate) pll_tau: f64,
+    pub(crate) pll_order: u32,
+}
+
+/// The unit's local reference models `m⁻¹ T_pf` (or `m T_pf⁻¹`) and `m T_vq`, checked stable.
+pub(crate) fn reference_models(spec: &ReferenceSpec) -> Result<(PfReference, VqModel), ModelError> {
+    let order_name = spec.params_p.name("order");
+    match spec.mode {
+        Mode::GridForming => {
+            // A grid-forming unit cannot have (near) zero p-f participation: its floor
+            // bounds its p-f stiffness on its own rating (the operator's floor alike).
+            let mu_min = dvpp_control::mu_min_gfm(spec.s_rated, spec.s_dvpp);
+            let adpf = match spec.adpf_p {
+                Adpf::LowPass(low) if low.mu < mu_min => {
+                    spec.adpf_p.with_mu(mu_min).expect("valid gain")
+                }
+                a => a.clone(),
+            };
+            let pf = GfmPfModel::with_floor(spec.tdes, &adpf, mu_min).map_err(|e| {
+                err(
+                    &order_name,
+                    format!("the grid-forming reference T_pf/m is not realizable: {e}"),
+                )
+            })?;
+            pf.check_stability()
+                .map_err(|e| err(&spec.params_p.name("kind"), e))?;
+            let vq = VqModel::grid_forming_shaped(spec.tdes, spec.adpf_q)
+                .map_err(|e| err(&spec.params_q.name("kind"), e))?;
+            Ok((PfReference::Forming(pf), vq))
+        }
+        Mode::GridFollowing => {
+            let fp = GflFpModel::new(spec.tdes, spec.adpf_p, spec.pll_tau, spec.pll_order)
+                .map_err(|e| {
+                    err(
+                        "pll.order",
+                        format!("the grid-following reference m T_pf^-1/(tau_pll s + 1)^d is not proper: {e}"),
+                    )
+                })?;
+            fp.check_stability()
+                .map_err(|e| err(&spec.params_p.name("kind"), e))?;
+            // The v-q reference keeps a first-order roll-off: more lag in that loop (gain
+            // X_th/Dq) would destabilize it; its dominant lag is `vq.tau`.
+            let vq = VqModel::grid_following_shaped(spec.tdes, spec.adpf_q, spec.pll_tau, 1)
+                .map_err(|e| err(&spec.params_q.name("kind"), e))?;
+            Ok((PfReference::Following(fp), vq))
+        }
+    }
+}
+
+/// The dc gains a complement unit closes, scaled down when they sum above its share (the
+/// participation condition), with one warning per episode (`warned`).
+pub(crate) fn closed_gains(
+    lpf: [f64; MAX_LPF],
+    n: usize,
+    share: f64,
+    warned: &mut bool,
+    ctx: &mut Context,
+) -> [f64; MAX_LPF] {
+    let sum: f64 = lpf[..n].iter().sum();
+    let mut g = lpf;
+    if sum > share + 1e-9 {
+        if !*warned {
+            *warned = true;
+            ctx.warn(format!(
+                "mu_p_lpf sums to {sum} > share {share}: scaled down to keep the participation condition"
+            ));
+        }
+        for x in &mut g[..n] {
+            *x *= share / sum;
+        }
+    }
+    g
+}
+
+/// A p-f reference model that takes the operator's dc gains.
+pub(crate) trait PfGains {
+    fn set_mu(&mut self, mu: f64) -> dvpp_control::Result<f64>;
+    fn set_lpf_gains(&mut self, mus: &[f64]) -> dvpp_control::Result<()>;
+}
+
+impl PfGains for GfmPfModel {
+    fn set_mu(&mut self, mu: f64) -> dvpp_control::Result<f64> {
+        GfmPfModel::set_mu(self, mu)
+    }
+    fn set_lpf_gains(&mut self, mus: &[f64]) -> dvpp_control::Result<()> {
+        GfmPfModel::set_lpf_gains(self, mus)
+    }
+}
+
+impl PfGains for GflFpModel {
+    fn set_mu(&mut self, mu: f64) -> dvpp_control::Result<f64> {
+        GflFpModel::set_mu(self, mu)
+    }
+    fn set_lpf_gains(&mut self, mus: &[f64]) -> dvpp_control::Result<()> {
+        GflFpModel::set_lpf_gains(self, mus)
+    }
+}
+
+/// The operator's dc gains into a p-f reference model: `mu_p` (static, low-pass) or the closed
+/// units' gains (complement); high- and band-pass shapes have none.
+pub(crate) fn set_p_gains(
+    model: &mut impl PfGains,
+    kind: AdpfKind,
+    mu_p: f64,
+    lpf: &[f64],
+) -> Result<(), ModelError> {
+    match kind {
+        AdpfKind::Static | AdpfKind::LowPass => {
+            model.set_mu(mu_p).map(drop).map_err(|e| err("mu_p", e))
+        }
+        AdpfKind::Complement => model.set_lpf_gains(lpf).map_err(|e| err("mu_p_lpf", e)),
+        // No dc gain: the shape is all there is.
+        AdpfKind::HighPass | AdpfKind::BandPass => Ok(()),
+    }
+}
+
+/// The grid-forming frequency channel over a step of `h`: `Δf = -(T_pf/m) Δp` with `Δp` on
+/// S_dvpp; returns `Δf` (pu) and the angle the frame turns beyond `2π f_nom h` (rad).
+pub(crate) fn forming_angle(pf: &mut GfmPfModel, dp: f64, h: f64, f_nom: f64) -> (f64, f64) {
+    let (df, df_int) = pf.step_with_integral(dp, h);
+    (df, 2.0 * PI * f_nom * df_int)
+}
+
+/// The grid-forming PI matching controller (option A) on the voltage magnitude: `q` tracks
+/// `q_ref`; the output `e0 + k_p (q_ref - q) + ∫k_i (q_ref - q)` stays within `[0, e_max]` and
+/// the integral `e_int` stops while it is held there (anti-windup).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn voltage_matching(
+    e_int: &mut f64,
+    q_ref: f64,
+    q: f64,
+    e0: f64,
+    kp: f64,
+    ki: f64,
+    e_max: f64,
+    h: f64,
+) -> f64 {
+    let e = q_ref - q;
+    let integral = *e_int + ki * e * h;
+    let unclamped = e0 + kp * e + integral;
+    let out = unclamped.clamp(0.0, e_max);
+    if unclamped == out {
+        *e_int = integral;
+    }
+    out
+}
+
+/// The primary source's availability at `t`: `P_avail0`, stepped by `dp` from `t_step` on, never
+/// below zero (pu on S_base).
+pub(crate) fn availability(p_avail0: f64, t_step: f64, dp: f64, t: f64) -> f64 {
+    let step = if t >= t_step { dp } else { 0.0 };
+    (p_avail0 + step).max(0.0)
+}

@@ -12,7 +12,7 @@ pub const DEFAULT_CASE: &str = "ieee9_dvpp";
 #[derive(Debug, Clone, Default, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct GridConfig {
-    /// A built-in case: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid` or `ieee9_mv`.
+    /// A built-in case: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid`, `ieee9_mv` or `thevenin_dvpp`.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub case: Option<String>,
     /// A case file (TOML) in the FMU's `resources/` directory, relative to it.

@@ -364,7 +364,7 @@ impl Case {
         Ok(case)
     }
 
-    /// Built-in case by name: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid`, `ieee9_mv`.
+    /// Built-in case by name: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid`, `ieee9_mv`, `thevenin_dvpp`.
     pub fn builtin(name: &str) -> Option<Case> {
         let text = builtin_text(name)?;
         Some(Case::from_toml_str(text).expect("built-in case is valid"))
@@ -372,7 +372,7 @@ impl Case {
 
     /// Names of the built-in cases.
     pub fn builtin_names() -> &'static [&'static str] {
-        &["ieee9", "ieee9_dvpp", "ieee9_hybrid", "ieee9_mv"]
+        &["ieee9", "ieee9_dvpp", "ieee9_hybrid", "ieee9_mv", "thevenin_dvpp"]
     }
 
     /// Map from bus id to 0-based index.
@@ -460,6 +460,7 @@ pub fn builtin_text(name: &str) -> Option<&'static str> {
         "ieee9_dvpp" => Some(include_str!("../../cases/ieee9_dvpp.toml")),
         "ieee9_hybrid" => Some(include_str!("../../cases/ieee9_hybrid.toml")),
         "ieee9_mv" => Some(include_str!("../../cases/ieee9_mv.toml")),
+        "thevenin_dvpp" => Some(include_str!("../../cases/thevenin_dvpp.toml")),
         _ => None,
     }
 }

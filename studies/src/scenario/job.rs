@@ -9,6 +9,7 @@ use operator_model::{Form, Role};
 use std::path::{Path, PathBuf};
 use toml::{Table, Value};
 
+use super::emt::DER_EMT_FMU;
 use super::split::split_case;
 use super::{
     plain_name, real, start_of, Build, Bundler, DerSpec, DvppSpec, Scenario, GRID, OPERATOR,
@@ -76,7 +77,8 @@ pub(super) struct Unit {
 
 /// The grid step's result: the case and the power-flow point the other units start from.
 pub(super) struct GridUnit {
-    pub(super) unit: Unit,
+    /// The grid FMU (none in an EMT-level system, where the case is the plant's data).
+    pub(super) unit: Option<Unit>,
     pub(super) case: grid_model::Case,
     pf: grid_model::Outputs,
 }
@@ -90,19 +92,32 @@ pub(super) struct DerUnit {
     pub(super) entry: usize,
     pub(super) operator: String,
     pub(super) forming: bool,
+    /// An EMT-level controller on the plant's unit `slot` (else a phasor DER on the grid's slot).
+    pub(super) emt: bool,
     pub(super) role: Role,
     /// A complement: the operator's low-pass gains it reads (1-based, in the operator's order).
     pub(super) closes: Vec<usize>,
 }
 
+/// What a DER is built for: its slot in the grid case or unit in the plant.
+pub(super) struct Slot {
+    pub(super) rating_mva: f64,
+    /// The slot's impedance (phasor DERs), pu on the rating.
+    pub(super) r: f64,
+    pub(super) x: Option<f64>,
+    pub(super) forming: bool,
+    /// The power-flow point `(p, q, v, v_angle)` at the slot (phasor DERs).
+    pub(super) point: Option<(f64, f64, f64, f64)>,
+}
+
 impl Job<'_, '_> {
     /// `e` prefixed with the scenario file.
-    fn here(&self, e: String) -> String {
+    pub(super) fn here(&self, e: String) -> String {
         format!("{}: {e}", self.path.display())
     }
 
     /// Bundle the FMU of `(package, id)` as `component` with the given `[model]` and start values.
-    fn build(
+    pub(super) fn build(
         &mut self,
         (package, id): (&str, &str),
         component: &str,
@@ -124,13 +139,13 @@ impl Job<'_, '_> {
     pub(super) fn check_der_names(&self) -> Result<(), String> {
         let ders = &self.sc.der;
         for d in ders {
-            if [GRID, OPERATOR].contains(&d.name.as_str())
+            if [GRID, OPERATOR, super::emt::PLANT].contains(&d.name.as_str())
                 || d.name.starts_with("operator_")
                 || ders.iter().filter(|x| x.name == d.name).count() > 1
                 || !plain_name(&d.name)
             {
                 return Err(self.here(format!(
-                    "DER name '{}' must be unique, not 'grid', 'operator' or 'operator_…', and made of letters, digits and _",
+                    "DER name '{}' must be unique, not 'grid', 'plant', 'operator' or 'operator_…', and made of letters, digits and _",
                     d.name
                 )));
             }
@@ -170,8 +185,9 @@ impl Job<'_, '_> {
         self.member[k].unwrap_or(0)
     }
 
-    /// The grid: its configuration, and the power-flow point the other units start from.
-    pub(super) fn grid(&mut self) -> Result<GridUnit, String> {
+    /// The grid: its configuration, and the power-flow point the other units start from; its
+    /// FMU bundled if `bundle` (a phasor system).
+    pub(super) fn grid(&mut self, bundle: bool) -> Result<GridUnit, String> {
         let here = |e: String| self.here(e);
         let spec = &self.sc.grid;
         let mut model = Table::new();
@@ -234,19 +250,20 @@ impl Job<'_, '_> {
             .map_err(|e| here(format!("grid: {e}")))?
             .outputs();
         let start = self.sc.grid.start.clone();
-        let md = self.build(GRID_FMU, GRID, model, &start, files.clone())?;
-        if eps.is_some() || rewritten {
-            let _ = std::fs::remove_file(&files[0]);
-        }
-        Ok(GridUnit {
-            unit: Unit {
+        let unit = if bundle {
+            let md = self.build(GRID_FMU, GRID, model, &start, files.clone())?;
+            Some(Unit {
                 name: GRID.into(),
                 md,
                 start,
-            },
-            case,
-            pf,
-        })
+            })
+        } else {
+            None
+        };
+        if eps.is_some() || rewritten {
+            let _ = std::fs::remove_file(&files[0]);
+        }
+        Ok(GridUnit { unit, case, pf })
     }
 
     /// The case as the scenario extends it: without its own slots (`case_slots = false`), the
@@ -350,9 +367,35 @@ impl Job<'_, '_> {
         tdes
     }
 
-    /// The DERs: preset, mode from the slot kind, the power-flow point as input start values;
-    /// then every complement unit again, with the time constants of the low-pass units it closes.
-    pub(super) fn ders(&mut self, grid: &GridUnit) -> Result<Vec<DerUnit>, String> {
+    /// The slots of a phasor grid case, with their power-flow point.
+    pub(super) fn slots(grid: &GridUnit) -> Vec<Slot> {
+        grid.case
+            .ders
+            .iter()
+            .zip(&grid.pf.der)
+            .map(|(slot, o)| Slot {
+                rating_mva: slot.rating_mva,
+                r: slot.r,
+                x: slot.x,
+                forming: slot.kind == grid_model::DerKind::GridForming,
+                point: Some((o.p, o.q, o.v, o.v_angle)),
+            })
+            .collect()
+    }
+
+    /// The DER FMU of the system's level.
+    fn der_fmu(&self) -> (&'static str, &'static str) {
+        if self.sc.emt.is_some() {
+            DER_EMT_FMU
+        } else {
+            DER_FMU
+        }
+    }
+
+    /// The DERs: preset, mode from the slot kind, (phasor) the power-flow point as input start
+    /// values; then every complement unit again, with the time constants of the low-pass units
+    /// it closes.
+    pub(super) fn ders(&mut self, slots: &[Slot]) -> Result<Vec<DerUnit>, String> {
         let mut ders = Vec::with_capacity(self.sc.der.len());
         let groups = self.groups();
         let mut entry = vec![0; self.sc.der.len()];
@@ -361,41 +404,49 @@ impl Job<'_, '_> {
                 entry[k] = i + 1;
             }
         }
+        let emt = self.sc.emt.is_some();
         for (k, &entry) in entry.iter().enumerate() {
             let g = self.group_of(k);
             let spec = &self.sc.der[k];
-            let slot = &grid.case.ders[k];
+            let slot = &slots[k];
             let model = der_model(spec, slot.rating_mva);
             let mut start = self.tdes(g);
             if let Some(rx) = self.rot_rx(g)? {
                 start.insert(der::ROT_RX.into(), real(rx));
             }
-            let forming = slot.kind == grid_model::DerKind::GridForming;
+            let forming = slot.forming;
             let mode = if forming {
                 der_model::Mode::GridForming
             } else {
                 der_model::Mode::GridFollowing
             };
             start.insert(der::MODE.into(), Value::Integer(mode.code().into()));
-            // The slot's rating and impedance, so that E∠θ starts behind the grid's own impedance.
-            let o = &grid.pf.der[k];
-            for (n, x) in [
-                (der::S_RATED, slot.rating_mva),
-                (der::R_F, slot.r),
-                (der::P, o.p),
-                (der::Q, o.q),
-                (der::V, o.v),
-                (der::V_ANGLE, o.v_angle),
-            ] {
-                start.insert(n.into(), real(x));
-            }
-            // A grid-following slot may leave its impedance out (the unit injects current).
-            if let Some(x) = slot.x {
-                start.insert(der::X_F.into(), real(x));
+            start.insert(der::S_RATED.into(), real(slot.rating_mva));
+            if emt {
+                // The controller measures its operating point; it prepares its first output for
+                // the system's step.
+                start.insert("t_s".into(), real(self.sc.experiment.step));
+            } else {
+                // The slot's impedance and power-flow point, so that E∠θ starts behind the
+                // grid's own impedance.
+                let (p, q, v, v_angle) = slot.point.ok_or("a phasor DER needs its slot's power-flow point")?;
+                for (n, x) in [
+                    (der::R_F, slot.r),
+                    (der::P, p),
+                    (der::Q, q),
+                    (der::V, v),
+                    (der::V_ANGLE, v_angle),
+                ] {
+                    start.insert(n.into(), real(x));
+                }
+                // A grid-following slot may leave its impedance out (the unit injects current).
+                if let Some(x) = slot.x {
+                    start.insert(der::X_F.into(), real(x));
+                }
             }
             start.extend(spec.start.clone());
             let name = spec.name.clone();
-            let md = self.build(DER_FMU, &name, model, &start, Vec::new())?;
+            let md = self.build(self.der_fmu(), &name, model, &start, Vec::new())?;
             let role = role_of(&md, &name)?;
             ders.push(DerUnit {
                 unit: Unit { name, md, start },
@@ -403,6 +454,7 @@ impl Job<'_, '_> {
                 entry,
                 operator: groups[g].1.clone(),
                 forming,
+                emt,
                 role,
                 closes: Vec::new(),
             });
@@ -411,7 +463,7 @@ impl Job<'_, '_> {
         // a hybrid DVPP: those of its own form): their time constants, and which of its
         // operator's low-pass gains it reads.
         for (name, _, members) in &groups {
-            self.close_complements(&mut ders, grid, name.as_deref(), members)?;
+            self.close_complements(&mut ders, slots, name.as_deref(), members)?;
         }
         Ok(ders)
     }
@@ -420,7 +472,7 @@ impl Job<'_, '_> {
     fn close_complements(
         &mut self,
         ders: &mut [DerUnit],
-        grid: &GridUnit,
+        slots: &[Slot],
         name: Option<&str>,
         members: &[usize],
     ) -> Result<(), String> {
@@ -473,8 +525,8 @@ impl Job<'_, '_> {
             for (key, v) in extra {
                 d.unit.start.entry(key).or_insert(v);
             }
-            let model = der_model(&self.sc.der[k], grid.case.ders[k].rating_mva);
-            d.unit.md = self.build(DER_FMU, &d.unit.name, model, &d.unit.start, Vec::new())?;
+            let model = der_model(&self.sc.der[k], slots[k].rating_mva);
+            d.unit.md = self.build(self.der_fmu(), &d.unit.name, model, &d.unit.start, Vec::new())?;
         }
         Ok(())
     }

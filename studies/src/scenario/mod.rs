@@ -2,12 +2,14 @@
 //! `dist/<scenario>/`: one FMU per component with the scenario's values as start values, and an
 //! SSP system `<scenario>.ssp` that wires them by the signal contract (`docs/contract.md`).
 
+mod emt;
 mod job;
 mod schema;
 mod split;
 mod ssd;
 mod wiring;
 
+pub use emt::EmtSpec;
 pub use schema::{DerSpec, DvppSpec, Experiment, FleetSpec, GridSpec, Scenario, StartOnly, RECORD};
 
 use model_description::ModelDescription;
@@ -77,6 +79,8 @@ pub fn described(dir: &Path, b: &Build) -> Result<ModelDescription, String> {
         "fmu-grid" => describe::<grid_model::GridFmu>(&Config::load(&res)?, Some(&res)),
         "fmu-der" => describe::<der_model::Der>(&Config::load(&res)?, Some(&res)),
         "fmu-operator" => describe::<operator_model::Operator>(&Config::load(&res)?, Some(&res)),
+        "fmu-der-emt" => describe::<der_model::emt::DerEmt>(&Config::load(&res)?, Some(&res)),
+        "fmu-emt-plant" => describe::<emt_plant_model::Plant>(&Config::load(&res)?, Some(&res)),
         p => Err(format!("unknown package {p}")),
     }?;
     // The system only needs the file to exist.
@@ -131,18 +135,41 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
         bundle_one,
     };
     job.check_der_names()?;
-    let grid = job.grid()?;
-    let ders = job.ders(&grid)?;
+    let emt = job.sc.emt.is_some();
+    // The grid case: the grid FMU's, or (EMT level) the plant's data source.
+    let mut grid = if emt && !job.sc.grid.has_case() {
+        None
+    } else {
+        Some(job.grid(!emt)?)
+    };
+    let slots = match &grid {
+        Some(g) => Job::slots(g),
+        None => job.plant_slots()?,
+    };
+    let ders = job.ders(&slots)?;
     let mut operators = Vec::new();
     let mut named = Vec::new();
     if job.sc.operator.is_some() {
+        let Some(grid) = &grid else {
+            return Err(format!(
+                "{}: an operator needs the power-flow point of a grid case ([grid] case); [emt] plant alone runs its units without one",
+                path.display()
+            ));
+        };
         for (g, (name, component, _)) in job.groups().into_iter().enumerate() {
-            operators.push(job.operator(&grid, &ders, g)?);
+            operators.push(job.operator(grid, &ders, g)?);
             named.push((name, component));
         }
     }
-    let wires = wiring(&ders, &named, grid.case.pocs.len());
-    let mut units = vec![grid.unit];
+    let pocs = grid.as_ref().map_or(0, |g| g.case.pocs.len());
+    let (source, measured) = if emt {
+        (emt::PLANT, job.plant(grid.as_ref(), &ders)?)
+    } else {
+        let unit = grid.as_mut().and_then(|g| g.unit.take()).expect("the grid FMU");
+        (GRID, unit)
+    };
+    let wires = wiring(&ders, &named, pocs, source);
+    let mut units = vec![measured];
     units.extend(ders.into_iter().map(|d| d.unit));
     units.extend(operators);
     let system = system(&job.name, &job.sc, &units, wires)?;

@@ -14,7 +14,11 @@ pub struct Scenario {
     /// One line shown in the SSD and the demo.
     pub description: String,
     pub experiment: Experiment,
+    /// The grid case (absent only in an EMT-level system whose plant is given by `[emt] plant`).
+    #[serde(default)]
     pub grid: GridSpec,
+    /// Present: the system runs at EMT level (the EMT plant and EMT-level DER controllers).
+    pub emt: Option<super::emt::EmtSpec>,
     /// The DVPP's desired behaviour, given to the operator and every DER (`[dvpp]` holding
     /// `S_dvpp`, `H`, `D`, `Dq`).
     #[serde(skip)]
@@ -144,6 +148,27 @@ pub struct GridSpec {
 
 fn yes() -> bool {
     true
+}
+
+impl Default for GridSpec {
+    /// No case (an EMT plant of its own); `case_slots` as the file's default.
+    fn default() -> Self {
+        GridSpec {
+            case: None,
+            case_file: None,
+            pcc_f_filter_t: None,
+            event: Vec::new(),
+            start: Table::new(),
+            case_slots: true,
+        }
+    }
+}
+
+impl GridSpec {
+    /// Whether a grid case is given.
+    pub fn has_case(&self) -> bool {
+        self.case.is_some() || self.case_file.is_some()
+    }
 }
 
 #[derive(Debug, Deserialize)]

@@ -200,7 +200,13 @@ fn the_initial_state_is_the_phasor_steady_state() {
         0.0,
         "the step load is not connected yet"
     );
-    println!("steady state vs phasor solution: largest difference {worst:.3e}");
+    println!(
+        "steady state vs phasor solution: largest difference {worst:.3e}; pcc.v {:.4}, thevenin p {:.4} q {:.4}, base load p {:.4}",
+        h.get("pcc.v"),
+        h.get("thevenin.p"),
+        h.get("thevenin.q"),
+        h.get("load[1].p")
+    );
     assert!(worst < 1e-9, "{worst:e}");
 
     // The island: unit 1's capacitor voltage v0 at angle 0 feeds the base load through its

@@ -9,8 +9,9 @@ pub const DEFAULT_CASE: &str = "dvpp3";
 /// The built-in cases.
 pub const CASES: &[&str] = &["dvpp3", "island"];
 
-/// Largest number of units and of loads.
-pub const MAX_UNITS: usize = 32;
+/// Largest number of units and of loads (the exact energy integrals cost one matrix exponential
+/// of twice the state's size per unit and topology: 16 units take seconds to discretize).
+pub const MAX_UNITS: usize = 16;
 pub const MAX_LOADS: usize = 32;
 
 /// One converter unit: its name and the start values of its parameters.

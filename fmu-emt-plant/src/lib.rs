@@ -570,7 +570,16 @@ impl Plant {
                 .map_err(|e| ModelError(format!("{e} (a series R-L load draws reactive power)")))?;
             // Z = V²/S* at 1 pu: R + jX = (P + jQ)/(P² + Q²).
             let d = p * p + q * q;
-            loads.push(Branch { r: p / d, l: q / d });
+            let (r, x) = (p / d, q / d);
+            if !(r.is_finite() && x.is_finite() && x > 0.0) {
+                return Err(format!(
+                    "parameters 'load[{}].P' = {p}, 'load[{}].Q' = {q} give no finite series R-L impedance",
+                    j + 1,
+                    j + 1
+                )
+                .into());
+            }
+            loads.push(Branch { r, l: x });
             let at = s[l.t_on];
             t_on.push((s[l.enabled] && at >= 0.0).then_some(at));
         }
@@ -891,7 +900,7 @@ impl Model for Plant {
         s: &mut Store,
         t: f64,
         h: f64,
-        _ctx: &mut Context,
+        ctx: &mut Context,
     ) -> Result<(), ModelError> {
         let (Some(fixed), Some(run)) = (&self.fixed, &mut self.run) else {
             return Err("do_step before initialization".into());
@@ -919,7 +928,14 @@ impl Model for Plant {
             z[net.u(k)] = 1.5 * v_dc * a;
             z[net.u(k) + 1] = 1.5 * v_dc * b;
         }
-        let d = self.cache.get(net, &topo, h);
+        if topo != run.topo {
+            for j in 0..net.loads.len() {
+                if topo.load(j) && !run.topo.load(j) {
+                    ctx.event(format!("t = {t}: load {} connected", j + 1));
+                }
+            }
+        }
+        let d = self.cache.get(net, &topo, h).map_err(ModelError)?;
         let n_units = net.units.len();
         let energy = |i: usize| network::quadratic(&d.forms[i], &z);
         for (k, u) in self.units.iter().enumerate() {

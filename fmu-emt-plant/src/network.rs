@@ -278,10 +278,20 @@ impl Network {
         w / (2.0 * self.omega_b)
     }
 
-    /// The exact discretization at step `h` for `topo`.
-    pub fn discretize(&self, topo: &Topology, h: f64) -> Discrete {
+    /// The exact discretization at step `h` for `topo`; refused when `M h` is not finite or so
+    /// large (a step of many time constants of the fastest mode, or extreme parameters) that
+    /// the scaling and squaring of the exponential would lose all accuracy.
+    pub fn discretize(&self, topo: &Topology, h: f64) -> Result<Discrete, String> {
         let n = self.n();
         let mh = self.continuous(topo) * h;
+        let norm = (0..n)
+            .map(|j| mh.column(j).iter().map(|v| v.abs()).sum::<f64>())
+            .fold(0.0f64, f64::max);
+        if !(norm.is_finite() && norm <= MAX_NORM) {
+            return Err(format!(
+                "the circuit cannot be discretized at h = {h} s: |M h| = {norm:e} (the step spans too many time constants of the fastest mode, or a parameter is extreme)"
+            ));
+        }
         let phi = expm(&mh);
         let forms = self
             .energy_rates(topo)
@@ -297,14 +307,17 @@ impl Network {
                 (&w + w.transpose()) * 0.5
             })
             .collect();
-        Discrete {
+        Ok(Discrete {
             h,
             topo: *topo,
             phi,
             forms,
-        }
+        })
     }
 }
+
+/// Largest 1-norm of `M h` accepted (2^20: twenty squarings).
+const MAX_NORM: f64 = 1_048_576.0;
 
 /// The circuit sampled at one step for one topology.
 #[derive(Debug, Clone)]
@@ -329,7 +342,7 @@ const CACHE_SIZE: usize = 6;
 
 impl Cache {
     /// The discretization for `(h, topo)`, computed if not cached.
-    pub fn get(&mut self, net: &Network, topo: &Topology, h: f64) -> &Discrete {
+    pub fn get(&mut self, net: &Network, topo: &Topology, h: f64) -> Result<&Discrete, String> {
         match self
             .entries
             .iter()
@@ -340,11 +353,11 @@ impl Cache {
                 self.entries.insert(0, d);
             }
             None => {
-                self.entries.insert(0, net.discretize(topo, h));
+                self.entries.insert(0, net.discretize(topo, h)?);
                 self.entries.truncate(CACHE_SIZE);
             }
         }
-        &self.entries[0]
+        Ok(&self.entries[0])
     }
 
     /// Forget every discretization (the circuit's data changed).

@@ -417,6 +417,14 @@ fn bad_parameters_and_nan_inputs_are_refused_by_name() {
         .max(h.exit_initialization_mode());
     assert_eq!(status, Status::Error);
     assert!(h.logged(Status::Error, "'load[1].Q'"), "{:#?}", h.log());
+    // A step the exponential cannot resolve.
+    let mut h = plant(&[]);
+    assert_eq!(h.do_step(0.0, 1e4), Status::Error);
+    assert!(
+        h.logged(Status::Error, "cannot be discretized at h = 10000 s"),
+        "{:#?}",
+        h.log()
+    );
     // A bad configuration.
     let config = Config::from_toml("[model]\ncase = \"nowhere\"\n").unwrap();
     let log = Harness::<Plant>::try_with_config(config, true)
@@ -452,6 +460,44 @@ fn bad_parameters_and_nan_inputs_are_refused_by_name() {
         h.step(50e-6);
         assert_eq!(h.get_many(["der[1].i_a", "der[1].v_dc", "pcc.v_c"]), first);
     }
+}
+
+/// The island variant: unit 1 holds its capacitor voltage; fed its own steady-state inputs with
+/// the rotating hold it stays there, and the load step at 1 s (moved to 20 ms) is carried.
+#[test]
+fn the_island_starts_flat_and_carries_its_load_step() {
+    let mut h = plant_toml(
+        "[model]\ncase = \"island\"\n",
+        &[("hold", 1.0), ("load[2].t_on", 0.02)],
+    );
+    let inputs = steady_inputs(&mut h, 1);
+    let p0 = h.get("der[1].p");
+    let dt = 50e-6;
+    let mut drift = 0.0f64;
+    for i in 0..800 {
+        drive(&mut h, &inputs, i as f64 * dt);
+        h.step(dt);
+        if i < 399 {
+            drift = drift.max((h.get("der[1].p") - p0).abs());
+        }
+    }
+    let p1 = h.get("der[1].p");
+    println!(
+        "island: p {p0:.5} -> {p1:.5} pu after the step (load 2: {:.5} pu at {:.4} pu voltage), flat-start drift {drift:.2e}",
+        h.get("load[2].p"),
+        h.get("pcc.v")
+    );
+    assert!(drift < 1e-9, "{drift:e}");
+    // Unit 1 is the only source: it carries the step, a constant impedance drawing
+    // 0.06 |v_pcc|² pu, and the loads draw exactly what it sends into the PCC (KCL).
+    let v = h.get("pcc.v");
+    let step = h.get("load[2].p");
+    assert!(
+        (step / (0.06 * v * v) - 1.0).abs() < 0.02,
+        "{step} at {v} pu"
+    );
+    let kcl = p1 - h.get("load[1].p") - step;
+    assert!(kcl.abs() < 1e-12, "{kcl}");
 }
 
 #[test]

@@ -97,7 +97,8 @@ struct UnitVars {
     tau_dc: Real,
     p0: Real,
     q0: Real,
-    v0: Real,
+    /// Unit 1 only: its capacitor voltage when it is the slack.
+    v0: Option<Real>,
     m: [Real; 3],
     i_dc_ref: Real,
     v: [Real; 3],
@@ -134,6 +135,7 @@ struct TheveninVars {
     dip_duration: Real,
     jump: Real,
     jump_t: Real,
+    i: [Real; 3],
     p: Real,
     q: Real,
 }
@@ -308,13 +310,15 @@ impl Plant {
             "pu",
             &format!("{who}: reactive power injected at the PCC at initialization, on S_base"),
         ));
-        let v0 = par(
-            v,
-            "v0",
-            1.0,
-            "pu",
-            "capacitor-voltage magnitude at initialization when unit 1 is the slack (no Thevenin source)",
-        );
+        let v0 = (k == 0).then(|| {
+            par(
+                v,
+                "v0",
+                1.0,
+                "pu",
+                "capacitor-voltage magnitude at initialization when this unit is the slack (Thevenin source absent or disabled), angle 0",
+            )
+        });
         let m = PHASES.map(|x| {
             v.real(Spec::input(
                 &n(&format!("m_{x}")),
@@ -518,6 +522,13 @@ impl Plant {
                 "phase jump of the source (added to its angle from thevenin.jump_t on)",
             ),
             jump_t: par(v, "thevenin.jump_t", 1.0, "s", "time of the phase jump"),
+            i: PHASES.map(|x| {
+                v.real(Spec::output(
+                    &format!("thevenin.i_{x}"),
+                    "pu",
+                    &format!("Thevenin current into the PCC, phase {x}, on S_base"),
+                ))
+            }),
             p: v.real(Spec::output(
                 "thevenin.p",
                 "pu",
@@ -559,7 +570,9 @@ impl Plant {
                 g: non_negative(s, u.g_dc, &n("G_dc"))?,
                 tau: positive(s, u.tau_dc, &n("tau_dc"))?,
             });
-            non_negative(s, u.v0, &n("v0"))?;
+            if let Some(v0) = u.v0 {
+                non_negative(s, v0, &n("v0"))?;
+            }
         }
         let mut loads = Vec::new();
         let mut t_on = Vec::new();
@@ -698,6 +711,9 @@ impl Plant {
             s[l.q] = q;
         }
         if let Some(t) = &self.thevenin {
+            for (r, x) in t.i.iter().zip(inverse_clarke(ab(net.i_th()))) {
+                s[*r] = x;
+            }
             let (p, q) = power(vp, ab(net.i_th()));
             s[t.p] = p;
             s[t.q] = q;
@@ -844,7 +860,8 @@ impl Model for Plant {
         let slack = if topo.thevenin {
             Slack::Thevenin(C::from_polar(e_mag, angle))
         } else {
-            Slack::Unit(C::new(s[self.units[0].v0], 0.0))
+            let v0 = self.units[0].v0.expect("unit 1 declares v0");
+            Slack::Unit(C::new(s[v0], 0.0))
         };
         let st = steady::solve(net, &topo, slack, &s0).map_err(ModelError)?;
         let nc = net.nc();

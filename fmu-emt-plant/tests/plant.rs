@@ -189,6 +189,7 @@ fn the_initial_state_is_the_phasor_steady_state() {
             .max((h.get(&format!("der[{}].v_dc", k + 1)) - 1.0).abs())
             .max((h.get(&format!("der[{}].i_src", k + 1)) - (p_conv + 0.05)).abs());
     }
+    worst = worst.max(check(&mut h, "thevenin.i_".into(), (e - v) / zs));
     let s_th = v * ((e - v) / zs).conj();
     worst = worst
         .max((h.get("thevenin.p") - s_th.re).abs())

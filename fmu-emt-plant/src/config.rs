@@ -10,7 +10,7 @@ pub const DEFAULT_CASE: &str = "dvpp3";
 pub const CASES: &[&str] = &["dvpp3", "island"];
 
 /// Largest number of units and of loads (the exact energy integrals cost one matrix exponential
-/// of twice the state's size per unit and topology: 16 units take seconds to discretize).
+/// of twice the state's size per unit and topology: 16 units take 0.5 s to discretize).
 pub const MAX_UNITS: usize = 16;
 pub const MAX_LOADS: usize = 32;
 

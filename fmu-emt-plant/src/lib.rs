@@ -14,7 +14,7 @@
 //!   (peak phase-neutral base). The transformer is an ideal ratio plus `R_t`, `L_t`: voltages
 //!   carry over unchanged, currents scale by `S_rated/S_base`, impedances by `S_base/S_rated`.
 //! - Inductances and capacitances are given as reactance and susceptance at `ω_b = 2π f_nom`
-//!   (`L` [s] = `X/ω_b`). `C_dc` is the dc link's energy time constant in seconds (stored
+//!   (`L = X/ω_b` in pu·s). `C_dc` is the dc link's energy time constant in seconds (stored
 //!   energy `C_dc v_dc²/2` pu·s on `S_rated`, as in the DER model).
 //! - Energies are in MJ (pu·s times the base in MVA). Angles refer to the start of the run:
 //!   the Thevenin source is `e_a(t) = E cos(ω_b (t - t_0) + angle)`, `t_0` the first

@@ -501,6 +501,69 @@ fn the_island_starts_flat_and_carries_its_load_step() {
     assert!(kcl.abs() < 1e-12, "{kcl}");
 }
 
+/// `energy.thevenin` after each 50 µs step over 20 ms of the default case fed its steady-state
+/// inputs (rotating hold), with the Thevenin parameters `values`.
+fn thevenin_run(values: &[(&str, f64)]) -> Vec<(f64, f64)> {
+    let mut all = vec![("hold", 1.0)];
+    all.extend_from_slice(values);
+    let mut h = plant(&all);
+    let inputs = steady_inputs(&mut h, 3);
+    (0..400)
+        .map(|i| {
+            let t = i as f64 * 50e-6;
+            drive(&mut h, &inputs, t);
+            h.step(50e-6);
+            (h.get("energy.thevenin"), h.get("pcc.v_a"))
+        })
+        .collect()
+}
+
+/// A full dip zeroes the source from the first step boundary at or after `dip_t` for
+/// `dip_duration`: the source then delivers no energy. A phase jump of 2π changes nothing; one
+/// of π/2 changes the PCC voltage from the jump on only.
+#[test]
+fn thevenin_events_act_at_step_boundaries() {
+    let dip = thevenin_run(&[
+        ("thevenin.dip", 1.0),
+        ("thevenin.dip_t", 0.005),
+        ("thevenin.dip_duration", 0.005),
+    ]);
+    for (i, w) in dip.windows(2).enumerate() {
+        // w[1] is the energy after the step that starts at (i + 1) · 50 µs.
+        let start = (i + 1) as f64 * 50e-6;
+        let delta = (w[1].0 - w[0].0).abs();
+        if (0.005 - 1e-9..0.01 - 1e-9).contains(&start) {
+            assert!(
+                delta < 1e-12,
+                "step at {start}: the dipped source delivered {delta}"
+            );
+        } else {
+            assert!(delta > 1e-6, "step at {start}: {delta}");
+        }
+    }
+    let plain = thevenin_run(&[]);
+    let full_turn = thevenin_run(&[("thevenin.jump", 2.0 * PI), ("thevenin.jump_t", 0.005)]);
+    let worst = plain
+        .iter()
+        .zip(&full_turn)
+        .map(|(a, b)| (a.1 - b.1).abs())
+        .fold(0.0f64, f64::max);
+    assert!(worst < 1e-9, "a 2π jump changed v_a by {worst:e}");
+    let quarter = thevenin_run(&[("thevenin.jump", PI / 2.0), ("thevenin.jump_t", 0.005)]);
+    for (i, (a, b)) in plain.iter().zip(&quarter).enumerate() {
+        // Output i is at (i + 1) · 50 µs: the first one after the jump is i = 100.
+        if i == 100 {
+            assert!(
+                (a.1 - b.1).abs() > 1e-3,
+                "the jump shows in the first step after it"
+            );
+        }
+        if i < 100 {
+            assert_eq!(a.1, b.1, "output {i} before the jump");
+        }
+    }
+}
+
 #[test]
 fn clamped_modulation_is_flagged() {
     let mut h = plant(&[]);

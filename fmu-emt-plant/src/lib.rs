@@ -42,9 +42,11 @@
 //! zero-order-hold step is stable at any step and exact for the held inputs.
 //!
 //! `hold` = 0 (default) holds the converter voltage's abc values over the step (zero-order
-//! hold, as a digital controller's PWM update does: on average a delay of `h/2`); `hold` = 1
-//! turns the held space vector at `ω_b` over the step, which reproduces a nominal-frequency
-//! sinusoid exactly (a flat start then stays flat to rounding).
+//! hold, as a digital controller's PWM update does: on average a delay of `h/2`, so a
+//! controller should send the modulation for the middle of the step, its angle advanced by
+//! `ω h/2`, which leaves an error of second order in `h`); `hold` = 1 turns the held space
+//! vector at `ω_b` over the step, which reproduces a nominal-frequency sinusoid exactly (a
+//! flat start then stays flat to rounding).
 //!
 //! # Switching and events
 //! A load connects (with zero current, as an inductor must) at the first step boundary at or

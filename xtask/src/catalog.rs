@@ -30,6 +30,11 @@ pub const FMUS: &[Fmu] = &[
         id: "dvpp_grid",
         model: "fmu-grid",
     },
+    Fmu {
+        package: "fmu-emt-plant",
+        id: "dvpp_emt_plant",
+        model: "fmu-emt-plant",
+    },
 ];
 
 /// Another configuration of an FMU, bundled as `dist/variants/<id>-<name>.fmu`.
@@ -100,6 +105,16 @@ case_file = "ieee9_dvpp.toml"
         id: "dvpp_der",
         name: "bess",
         config: "# Case study I BESS: complement of the wind and PV low-pass ADPFs, 60 MVA.\n[model]\npreset = \"bess\"\n",
+        files: &[],
+    },
+    Variant {
+        id: "dvpp_emt_plant",
+        name: "island",
+        config: r#"# The EMT plant as an island: one 60 MVA unit feeding a series R-L load of 0.5 + j0.1 pu
+# on its rating, a step of 0.1 + j0.02 pu of its rating at t = 1 s, no Thevenin source.
+[model]
+case = "island"
+"#,
         files: &[],
     },
 ];

@@ -59,7 +59,7 @@ pub(super) fn plant_from_case(
     let [machine] = case.machines.as_slice() else {
         return not("not exactly one machine");
     };
-    if machine.model != grid_model::MachineModel::Classical
+    if machine.model != grid_model::case::MachineModel::Classical
         || machine.governor.is_some()
         || machine.exciter.is_some()
     {
@@ -87,8 +87,8 @@ pub(super) fn plant_from_case(
     let base = case.base_mva;
     // The machine's data on the system base.
     let to_sys = match machine.base {
-        grid_model::ParamBase::Machine => base / machine.rating_mva,
-        grid_model::ParamBase::System => 1.0,
+        grid_model::case::ParamBase::Machine => base / machine.rating_mva,
+        grid_model::case::ParamBase::System => 1.0,
     };
     let (r_th, x_th) = (line.r + machine.ra * to_sys, line.x + machine.xd_p * to_sys);
     let (h_th, d_th) = (machine.h / to_sys, machine.d / to_sys);

@@ -80,7 +80,7 @@ pub(super) struct GridUnit {
     /// The grid FMU (none in an EMT-level system, where the case is the plant's data).
     pub(super) unit: Option<Unit>,
     pub(super) case: grid_model::Case,
-    pf: grid_model::Outputs,
+    pub(super) pf: grid_model::Outputs,
 }
 
 /// A bundled DER and what its wiring depends on.

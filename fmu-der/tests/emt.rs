@@ -160,24 +160,3 @@ fn both_modes_meet_the_droop_law_on_a_frequency_step() {
         assert!((f.last().unwrap() - df).abs() < 1e-5, "mode {mode}");
     }
 }
-
-#[test]
-#[ignore]
-fn trace() {
-    let mode: i32 = std::env::var("MODE")
-        .map(|m| m.parse().unwrap())
-        .unwrap_or(1);
-    let extra = std::env::var("SET").unwrap_or_default();
-    let mut start: Vec<(&str, f64)> = vec![];
-    for kv in extra.split(',').filter(|s| !s.is_empty()) {
-        let (k, v) = kv.split_once('=').unwrap();
-        start.push((k, v.parse().unwrap()));
-    }
-    let (p, f, _) = run(mode, 0.3, -1e-3, 3.0, &start);
-    let every: usize = std::env::var("EVERY")
-        .map(|m| m.parse().unwrap())
-        .unwrap_or(2000);
-    for k in (0..p.len()).step_by(every) {
-        println!("{:.4} {:.6} {:.3e}", k as f64 * H, p[k], f[k]);
-    }
-}

@@ -313,29 +313,35 @@ impl DerEmt {
             )
             .tunable(),
         );
-        let three = |v: &mut Variables, prefix: &str, desc: &str| {
-            PHASES.map(|ph| {
-                v.real(Spec::input(
-                    &format!("{prefix}_{ph}"),
-                    0.0,
+        // Start values: a balanced 1 pu capacitor voltage at angle 0 and no current (the unit
+        // at no load), so that the FMU initializes and steps on its own.
+        let three = |v: &mut Variables, prefix: &str, start: [f64; 3], desc: &str| {
+            let phase = |k: usize| {
+                Spec::input(
+                    &format!("{prefix}_{}", PHASES[k]),
+                    start[k],
                     "pu",
-                    &format!("{desc}, phase {ph}"),
-                ))
-            })
+                    &format!("{desc}, phase {}", PHASES[k]),
+                )
+            };
+            [0, 1, 2].map(|k| v.real(phase(k)))
         };
         let v_abc = three(
             v,
             "v",
+            [1.0, -0.5, -0.5],
             "measured filter-capacitor voltage, pu of the rated phase-to-neutral peak",
         );
         let i_abc = three(
             v,
             "i",
+            [0.0; 3],
             "measured converter-side filter current, pu of the rated peak current",
         );
         let ig_abc = three(
             v,
             "ig",
+            [0.0; 3],
             "measured grid-side (transformer) current toward the grid, pu of the rated peak current",
         );
         let v_dc = v.real(

@@ -372,7 +372,13 @@ impl Case {
 
     /// Names of the built-in cases.
     pub fn builtin_names() -> &'static [&'static str] {
-        &["ieee9", "ieee9_dvpp", "ieee9_hybrid", "ieee9_mv", "thevenin_dvpp"]
+        &[
+            "ieee9",
+            "ieee9_dvpp",
+            "ieee9_hybrid",
+            "ieee9_mv",
+            "thevenin_dvpp",
+        ]
     }
 
     /// Map from bus id to 0-based index.

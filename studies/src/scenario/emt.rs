@@ -106,10 +106,7 @@ pub(super) fn plant_from_case(
         q_th -= d.q;
     }
     // I = conj(S / V), V = v u.
-    let (i_re, i_im) = (
-        (p_th * u.0 + q_th * u.1) / v,
-        (p_th * u.1 - q_th * u.0) / v,
-    );
+    let (i_re, i_im) = ((p_th * u.0 + q_th * u.1) / v, (p_th * u.1 - q_th * u.0) / v);
     let e = (
         v * u.0 + r_th * i_re - x_th * i_im,
         v * u.1 + r_th * i_im + x_th * i_re,
@@ -125,7 +122,12 @@ pub(super) fn plant_from_case(
         loads.push(Value::Table(t));
     };
     for (j, l) in case.loads.iter().enumerate() {
-        load(format!("load{}", j + 1), l.p_mw / base, l.q_mvar / base, 0.0);
+        load(
+            format!("load{}", j + 1),
+            l.p_mw / base,
+            l.q_mvar / base,
+            0.0,
+        );
     }
     for (j, ev) in case.events.iter().enumerate() {
         match ev {
@@ -135,9 +137,12 @@ pub(super) fn plant_from_case(
                 dp_mw,
                 dq_mvar,
                 model,
-            } if *bus == pcc && *model == grid_model::case::LoadModel::ConstantImpedance => {
-                load(format!("step{}", j + 1), dp_mw / base, dq_mvar / base, *time)
-            }
+            } if *bus == pcc && *model == grid_model::case::LoadModel::ConstantImpedance => load(
+                format!("step{}", j + 1),
+                dp_mw / base,
+                dq_mvar / base,
+                *time,
+            ),
             _ => return not("an event other than a constant-impedance load step at the PCC"),
         }
     }
@@ -202,7 +207,9 @@ impl Job<'_, '_> {
             .as_ref()
             .and_then(|e| e.plant.clone())
             .ok_or_else(|| {
-                self.here("[emt] needs a grid case ([grid] case) or the plant's own [emt.plant]".into())
+                self.here(
+                    "[emt] needs a grid case ([grid] case) or the plant's own [emt.plant]".into(),
+                )
             })?;
         Value::Table(table)
             .try_into()
@@ -236,7 +243,11 @@ impl Job<'_, '_> {
 
     /// The EMT plant: converted from the grid case (its power-flow point), or its own
     /// `[model]`; each unit's primary-source lag is its controller's `tau_dc`.
-    pub(super) fn plant(&mut self, grid: Option<&GridUnit>, ders: &[DerUnit]) -> Result<Unit, String> {
+    pub(super) fn plant(
+        &mut self,
+        grid: Option<&GridUnit>,
+        ders: &[DerUnit],
+    ) -> Result<Unit, String> {
         let units = ders
             .iter()
             .map(|d| {
@@ -270,12 +281,69 @@ impl Job<'_, '_> {
                 (model, Table::new())
             }
         };
-        start.extend(self.sc.emt.as_ref().map_or(Table::new(), |e| e.start.clone()));
+        start.extend(
+            self.sc
+                .emt
+                .as_ref()
+                .map_or(Table::new(), |e| e.start.clone()),
+        );
         let md = self.build(PLANT_FMU, PLANT, model, &start, Vec::new())?;
         Ok(Unit {
             name: PLANT.into(),
             md,
             start,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use fmi_export::harness::Harness;
+    use fmi_export::Status;
+
+    /// The plant converted from the phasor Thevenin case starts where the phasor grid's power
+    /// flow is: each unit's injection, the PCC voltage and the source's power agree.
+    #[test]
+    fn the_plant_from_a_thevenin_case_starts_at_its_power_flow() {
+        let case = grid_model::Case::builtin("thevenin_dvpp").unwrap();
+        let pf = grid_model::Grid::new(&case).unwrap().outputs();
+        let units: Vec<UnitData> = [("wind", 46.0, 1.5), ("pv", 73.0, 0.6), ("bess", 60.0, 0.2)]
+            .map(|(name, s_rated, tau_dc)| UnitData {
+                name: name.into(),
+                s_rated,
+                tau_dc,
+            })
+            .into();
+        let (model, start) = plant_from_case(&case, &pf, &units).unwrap();
+        let mut doc = Table::new();
+        doc.insert("model".into(), Value::Table(model));
+        let mut h = Harness::<emt_plant_model::Plant>::from_toml(&toml::to_string(&doc).unwrap());
+        assert_eq!(h.setup_experiment(0.0, None), Status::Ok);
+        for (name, v) in &start {
+            h.set(name, v.as_float().unwrap());
+        }
+        assert_eq!(h.enter_initialization_mode(), Status::Ok);
+        assert_eq!(h.exit_initialization_mode(), Status::Ok);
+        let mut worst: f64 = 0.0;
+        for (k, o) in pf.der.iter().enumerate() {
+            let [p, q] = h.get_many([&format!("der[{}].p", k + 1), &format!("der[{}].q", k + 1)]);
+            worst = worst.max((p - o.p).abs()).max((q - o.q).abs());
+        }
+        worst = worst.max((h.get("pcc.v") - pf.der[0].v).abs());
+        assert!(worst < 1e-9, "largest difference to the power flow {worst:e}");
+        // The loads draw their power-flow P + jQ: the source supplies the rest.
+        let load: f64 = case.loads.iter().map(|l| l.p_mw / case.base_mva).sum();
+        let ders: f64 = pf.der.iter().map(|d| d.p).sum();
+        assert!((h.get("thevenin.p") - (load - ders)).abs() < 1e-9);
+    }
+
+    /// A case that is not one PCC behind a Thevenin equivalent is refused with the reason.
+    #[test]
+    fn a_case_that_is_no_thevenin_equivalent_is_refused() {
+        let case = grid_model::Case::builtin("ieee9_dvpp").unwrap();
+        let pf = grid_model::Grid::new(&case).unwrap().outputs();
+        let e = plant_from_case(&case, &pf, &[]).unwrap_err();
+        assert!(e.contains("not exactly one machine"), "{e}");
     }
 }

@@ -429,7 +429,9 @@ impl Job<'_, '_> {
             } else {
                 // The slot's impedance and power-flow point, so that E∠θ starts behind the
                 // grid's own impedance.
-                let (p, q, v, v_angle) = slot.point.ok_or("a phasor DER needs its slot's power-flow point")?;
+                let (p, q, v, v_angle) = slot
+                    .point
+                    .ok_or("a phasor DER needs its slot's power-flow point")?;
                 for (n, x) in [
                     (der::R_F, slot.r),
                     (der::P, p),
@@ -526,7 +528,13 @@ impl Job<'_, '_> {
                 d.unit.start.entry(key).or_insert(v);
             }
             let model = der_model(&self.sc.der[k], slots[k].rating_mva);
-            d.unit.md = self.build(self.der_fmu(), &d.unit.name, model, &d.unit.start, Vec::new())?;
+            d.unit.md = self.build(
+                self.der_fmu(),
+                &d.unit.name,
+                model,
+                &d.unit.start,
+                Vec::new(),
+            )?;
         }
         Ok(())
     }

@@ -165,7 +165,10 @@ pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<P
     let (source, measured) = if emt {
         (emt::PLANT, job.plant(grid.as_ref(), &ders)?)
     } else {
-        let unit = grid.as_mut().and_then(|g| g.unit.take()).expect("the grid FMU");
+        let unit = grid
+            .as_mut()
+            .and_then(|g| g.unit.take())
+            .expect("the grid FMU");
         (GRID, unit)
     };
     let wires = wiring(&ders, &named, pocs, source);
@@ -267,6 +270,19 @@ mod tests {
                 3 * (11 + 3) + 2 + 2 + 4 + 2 * 4 + 2,
             );
         }
+    }
+
+    /// EMT-level systems: per DER its 10 measurements from the plant and 4 commands to it; with
+    /// an operator as case study I (4 measurements and mu_q per DER, mu_p of the 2 low-pass
+    /// units, their 2 gains to the complement) and the plant's 4 PCC measurements.
+    #[test]
+    fn emt_scenarios_wire_outputs_to_inputs() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+        assert_wired(&dir.join("scenarios").join("emt_island.toml"), 14);
+        assert_wired(
+            &dir.join("tests").join("data").join("emt_thevenin.toml"),
+            3 * 14 + 3 * 5 + 2 + 2 + 4,
+        );
     }
 
     #[test]
@@ -556,7 +572,12 @@ mod tests {
             let ders: Vec<String> = system
                 .components
                 .iter()
-                .filter(|c| mds[&c.name].model_identifier() == Some("dvpp_der"))
+                .filter(|c| {
+                    matches!(
+                        mds[&c.name].model_identifier(),
+                        Some("dvpp_der" | "dvpp_der_emt")
+                    )
+                })
                 .map(|c| c.name.clone())
                 .collect();
             assert_eq!(units(&path).unwrap(), ders, "{}", path.display());

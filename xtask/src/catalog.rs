@@ -178,6 +178,24 @@ pub const BENCHES: &[Bench] = &[
         set: &[],
     },
     Bench {
+        label: "DER at EMT level, grid-forming, 50 us (target <= 1 us)",
+        fmu: "default/dvpp_der_emt.fmu",
+        h: 50e-6,
+        set: &[],
+    },
+    Bench {
+        label: "DER at EMT level, grid-following, 50 us",
+        fmu: "default/dvpp_der_emt.fmu",
+        h: 50e-6,
+        set: &[("mode", 2.0)],
+    },
+    Bench {
+        label: "EMT plant, 3 units, 50 us",
+        fmu: "default/dvpp_emt_plant.fmu",
+        h: 50e-6,
+        set: &[],
+    },
+    Bench {
         label: "DER BESS, grid-following complement",
         fmu: "variants/dvpp_der-bess.fmu",
         h: 1e-3,

@@ -439,6 +439,12 @@ fn bench() -> Result {
         ring.display()
     ));
     c.arg(format!("system|case1_load|{}|20", ssp.display()));
+    // The EMT level: case study I's DVPP with the paper's converters at 50 µs.
+    let emt = root()
+        .join("dist")
+        .join("emt_thevenin")
+        .join("emt_thevenin.ssp");
+    c.arg(format!("system|emt_thevenin|{}|10", emt.display()));
     // The cost of recording (docs/results.md): case study I, and 192 DER units (the scale
     // bench's system, written below) at 1 ms.
     c.arg(format!("results|case1_load|{}|20", ssp.display()));

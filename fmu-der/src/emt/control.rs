@@ -118,6 +118,12 @@ impl DerEmt {
         m.v_c - m.i_g * s[self.r_t] - m.i_g.rot90() * (omega * s[self.l_t])
     }
 
+    /// The voltage behind the virtual resistance, `v_c + r_v i_g`: the grid-forming frame and
+    /// `E` start on it.
+    fn behind_virtual(&self, s: &Store, m: &FilterMeasurement) -> Dq {
+        m.v_c + m.i_g * s[self.vi_r]
+    }
+
     fn available(&self, s: &Store, t: f64) -> f64 {
         layer::availability(s[self.p_avail0], s[self.avail_t], s[self.avail_dp], t)
     }
@@ -182,7 +188,10 @@ impl DerEmt {
         // capacitor voltage (grid-forming) or on the grid-side voltage (grid-following).
         let at_zero = self.measure(s, 0.0);
         let rho = match mode {
-            Mode::GridForming => at_zero.v_c.q.atan2(at_zero.v_c.d),
+            Mode::GridForming => {
+                let w = self.behind_virtual(s, &at_zero);
+                w.q.atan2(w.d)
+            }
             Mode::GridFollowing => {
                 let vg = self.grid_voltage(s, &at_zero, 1.0);
                 vg.q.atan2(vg.d)
@@ -218,8 +227,8 @@ impl DerEmt {
             theta: rho,
             df: 0.0,
             e_int: 0.0,
-            e: m.v_c.d,
-            e0: m.v_c.d,
+            e: self.behind_virtual(s, &m).d,
+            e0: self.behind_virtual(s, &m).d,
             p0,
             q0,
             v0: vg.norm(),
@@ -337,7 +346,8 @@ impl DerEmt {
                 );
                 rt.q_ref = rt.q0 + rt.vq.step(dv, h) / to_dvpp;
                 rt.theta += dtheta;
-                let v_ref = Dq { d: rt.e, q: 0.0 };
+                // The capacitor-voltage reference behind the virtual resistance.
+                let v_ref = Dq { d: rt.e, q: 0.0 } - m.i_g * s[self.vi_r];
                 (rt.inner.step(&m, v_ref, omega, v_m_max, h), df)
             }
             PfReference::Following(fp) => {

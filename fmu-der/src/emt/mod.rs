@@ -74,6 +74,7 @@ pub struct DerEmt {
     r_t: Real,
     l_t: Real,
     vdc_ratio: Real,
+    vi_r: Real,
     current_hz: Real,
     voltage_hz: Real,
     zero_ratio: Real,

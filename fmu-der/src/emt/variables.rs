@@ -141,7 +141,7 @@ impl DerEmt {
         let qpi_ki = tun(
             v,
             "qpi.ki",
-            5.0,
+            0.5,
             "1/s",
             "grid-forming PI matching controller: integral gain from the q error to E",
             0.0,
@@ -149,7 +149,7 @@ impl DerEmt {
         let e_max = tun(
             v,
             "E_max",
-            1.2,
+            1.5,
             "pu",
             "grid-forming: largest capacitor-voltage reference E the matching controller sets",
             0.0,
@@ -195,6 +195,14 @@ impl DerEmt {
             "1",
             "nominal dc voltage over the rated phase-to-neutral peak voltage, v_dc*/v_r: the converter's phase voltage is m * v_dc * vdc_ratio/2",
             1e-3,
+        );
+        let vi_r = tun(
+            v,
+            "vi.r",
+            0.3,
+            "pu",
+            "grid-forming: virtual resistance on S_rated: the capacitor-voltage reference is (E, 0) - vi.r i_g. It damps the swing of the frame angle through the network's inductances (without it a unit on a stiff grid behind its transformer, R/X = 0.1, is unstable at this level of modelling: docs/emt.md)",
+            0.0,
         );
         let current_hz = tun(
             v,
@@ -489,6 +497,7 @@ impl DerEmt {
             r_t,
             l_t,
             vdc_ratio,
+            vi_r,
             current_hz,
             voltage_hz,
             zero_ratio,

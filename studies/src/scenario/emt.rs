@@ -331,7 +331,10 @@ mod tests {
             worst = worst.max((p - o.p).abs()).max((q - o.q).abs());
         }
         worst = worst.max((h.get("pcc.v") - pf.der[0].v).abs());
-        assert!(worst < 1e-9, "largest difference to the power flow {worst:e}");
+        assert!(
+            worst < 1e-9,
+            "largest difference to the power flow {worst:e}"
+        );
         // The loads draw their power-flow P + jQ: the source supplies the rest.
         let load: f64 = case.loads.iter().map(|l| l.p_mw / case.base_mva).sum();
         let ders: f64 = pf.der.iter().map(|d| d.p).sum();

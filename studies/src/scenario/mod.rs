@@ -280,7 +280,7 @@ mod tests {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
         assert_wired(&dir.join("scenarios").join("emt_island.toml"), 14);
         assert_wired(
-            &dir.join("tests").join("data").join("emt_thevenin.toml"),
+            &dir.join("scenarios").join("emt_thevenin.toml"),
             3 * 14 + 3 * 5 + 2 + 2 + 4,
         );
     }

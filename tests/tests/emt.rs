@@ -5,6 +5,7 @@
 use dvpp_cosim::master::{self, Options};
 use dvpp_cosim::Table;
 use dvpp_e2e::scenario;
+use dvpp_report::plot::{Figure, Panel, Style};
 
 fn run(name: &str) -> Table {
     master::System::builder(&scenario(name))
@@ -103,6 +104,19 @@ fn emt_thevenin_gives_the_frequency_and_powers_of_its_phasor_twin() {
         nadir(&f_ph) * 50.0
     );
     assert!(e < 0.03, "PCC frequency NRMSE {:.2} %", e * 100.0);
+    let time = column(&phasor, "time");
+    let hz = |x: &[f64]| x.iter().map(|v| v * 50.0).collect::<Vec<f64>>();
+    let n = time.len().min(f_emt.len());
+    let mut f_panel = Panel::new("PCC frequency", "t (s)", "Δf (Hz)")
+        .series("EMT, 50 µs", &time[..n], &hz(&f_emt)[..n], Style::Solid)
+        .series("phasor, 1 ms", &time[..n], &hz(&f_ph)[..n], Style::Dashed);
+    f_panel = f_panel.series(
+        "desired (phasor operator's ref.df)",
+        &time[..n],
+        &hz(&column(&phasor, "operator.ref.df"))[..n],
+        Style::Dotted,
+    );
+    let mut p_panel = Panel::new("the units' power", "t (s)", "Δp (pu on 100 MVA)");
     for k in 1..=3 {
         let p_emt = dev(sample(&emt, &format!("plant.der[{k}].p")));
         let p_ph = dev(column(&phasor, &format!("grid.der[{k}].p")));
@@ -117,5 +131,30 @@ fn emt_thevenin_gives_the_frequency_and_powers_of_its_phasor_twin() {
         );
         // Where each unit settles, within 5 % of the phasor twin's peak change.
         assert!((p_emt[n] - p_ph[n]).abs() < 0.05 * peak, "unit {k}");
+        let name = ["wind", "PV", "BESS"][k - 1];
+        p_panel = p_panel
+            .series(
+                format!("{name}, EMT"),
+                &time[..=n],
+                &p_emt[..=n],
+                Style::Solid,
+            )
+            .series(
+                format!("{name}, phasor"),
+                &time[..=n],
+                &p_ph[..=n],
+                Style::Dashed,
+            );
+    }
+    // The figure of docs/emt.md §10, written where DVPP_FIGURE_DIR says (tests/figures).
+    if let Some(dir) = std::env::var_os("DVPP_FIGURE_DIR") {
+        let path = std::path::Path::new(&dir).join("emt_thevenin.svg");
+        Figure::new("Case study I's DVPP on a Thevenin equivalent: EMT (50 µs) against phasor (1 ms), 28 MW step")
+            .panel(f_panel)
+            .panel(p_panel)
+            .columns(1)
+            .save(&path)
+            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        println!("wrote {}", path.display());
     }
 }

@@ -257,9 +257,10 @@ SIGNALS = ("t", "angle", *OUTPUTS)
 def run(case, t_end, params=None, t_step=T_STEP, v0=1.0, timing="mid", h=H_STEP):
     """One coupled run: ``case`` = "island" or a short-circuit ratio (a number: the PCC tied to a
     stiff source through a line of R/X = 0.1). The PCC starts at ``v0`` pu, the load step closes
-    at ``t_step``. Returns the
-    recorded signals (arrays; ``angle``: the unwrapped PCC voltage angle beyond ω_nom t), the
-    unit's parameters, its flags at the end, its warnings, the wall time of the coupled loop."""
+    at ``t_step``; ``timing``: how the held modulation becomes the source's samples (the module's
+    docstring). Returns the recorded signals (arrays; ``angle``: the unwrapped PCC voltage angle
+    beyond ω_nom t), the unit's parameters, its flags at the end, its warnings and the wall time
+    of the coupled loop."""
     import fmpy.fmi2  # noqa: F401 (loaded before the clock starts)
 
     params = {"t_s": h, **(params or {})}
@@ -273,7 +274,7 @@ def run(case, t_end, params=None, t_step=T_STEP, v0=1.0, timing="mid", h=H_STEP)
     else:
         circuit = Circuit(unit["S_rated"] * 1e6, f, GRID_LOAD, LOAD_STEP, z_line=grid_line(case),
                           s0=GRID_S0, v0=v0, h=h, timing=timing)
-    # The modulation for v_conv at v_dc = 1.
+    # The converter's phase voltage (pu of v_r) per unit of modulation, at v_dc = 1.
     volts_per_m = unit["vdc_ratio"] / 2.0
     der = DerEmt(params, circuit.measure(), name=f"emt-{case}")
     n = round(t_end / h)
@@ -285,7 +286,7 @@ def run(case, t_end, params=None, t_step=T_STEP, v0=1.0, timing="mid", h=H_STEP)
         rec[name][0] = out[j]
     columns = [rec[name] for name in OUTPUTS]
     angle = rec["angle"][0]
-    # The output at initialization is the modulation for the first step: into the source.
+    # The output at initialization is the modulation held over the first step [0, h].
     circuit.last = np.array(out[:3]) * volts_per_m
     started = time.perf_counter()
     meas = circuit.measure()
@@ -419,8 +420,9 @@ if __name__ == "__main__":
         rec = grid[scr, hh] = run(scr, end, params={"Tdes.H": hh})
         g = grid_figures(rec)
         limits = [n for n, on in rec["flags"].items() if on] or "none"
+        settle = f"{g['settle'] * 1e3:.0f} ms" if g["settle"] < math.inf else f"not within {end - T_STEP:g} s"
         print(f"| {scr} | {hh:g} s | {g['df_before']:.1e}, {g['ep_before']:.1e} | {g['peak']:.4f} | "
-              f"{g['settle'] * 1e3:.0f} ms | {g['ep_end']:.1e}, {g['df_end']:.1e} | {g['q_min']:.4f} .. {g['q_max']:.4f} "
+              f"{settle} | {g['ep_end']:.1e}, {g['df_end']:.1e} | {g['q_min']:.4f} .. {g['q_max']:.4f} "
               f"({g['q_end']:.4f}, {g['q_ref_end']:.4f}) | {limits} | {rec['wall'] / end:.2f} s |")
 
     if args.svg:

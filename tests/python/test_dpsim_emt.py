@@ -95,3 +95,18 @@ def test_grid_load_step_settles_back_to_the_set_point(scr):
     assert g["settle"] < 1.0
     assert abs(g["ep_end"]) < 1e-4 and abs(g["df_end"]) < 1e-6
     assert g["q_max"] - g["q_min"] < 0.1 and abs(g["q_end"] - g["q_ref_end"]) < 1e-3
+
+
+def test_the_source_samples_the_held_modulation_at_the_step_boundary():
+    """DPsim's trapezoidal rule takes the controlled source as samples at the solution times,
+    linear in between; the FMU means each output held over a step (its angle advanced for that).
+    Imposing the mean of the last two outputs (the sample at the boundary of their hold
+    intervals, timing="mid") starts flat; imposing the last output as it is (timing="direct":
+    half a step ahead in phase) does not."""
+    drift = {}
+    for timing in ("mid", "direct"):
+        rec = host.run(20, 0.3, params={"Tdes.H": 1.0}, t_step=1.0, timing=timing)
+        drift[timing] = (np.max(np.abs(rec["p"] - rec["p"][0])), np.max(np.abs(rec["q"] - rec["q"][0])))
+        print(f"\nSCR 20, no event, timing {timing}: max |Δp| {drift[timing][0]:.1e}, max |Δq| {drift[timing][1]:.1e} pu")
+    assert max(drift["mid"]) < 1e-4
+    assert min(drift["direct"]) > 10 * max(drift["mid"])

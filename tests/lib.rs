@@ -81,7 +81,13 @@ pub fn cosim() -> PathBuf {
 
 pub mod mutate;
 
-pub const IDS: [&str; 3] = ["dvpp_der", "dvpp_operator", "dvpp_grid"];
+pub const IDS: [&str; 5] = [
+    "dvpp_der",
+    "dvpp_operator",
+    "dvpp_grid",
+    "dvpp_der_emt",
+    "dvpp_emt_plant",
+];
 
 /// The DER units of a system (`.ssp` or its directory): the components whose FMU is the DER FMU
 /// (model identifier `dvpp_der`), in the order of the SSD (the grid's slot order).

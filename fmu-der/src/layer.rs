@@ -106,6 +106,31 @@ pub(crate) fn closed_gains(
     g
 }
 
+/// The operator's dc gains at this step: `mu_q` into the v-q reference model (if its shape has
+/// a dc gain), and the closed units' gains a complement unit reads (scaled by
+/// [`closed_gains`]); returns the p-f gains for [`set_p_gains`].
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn operator_gains(
+    vq: &mut VqModel,
+    q_kind: AdpfKind,
+    mu_q: f64,
+    p_kind: AdpfKind,
+    lpf: [f64; MAX_LPF],
+    n_lpf: usize,
+    share: f64,
+    warned: &mut bool,
+    ctx: &mut Context,
+) -> Result<[f64; MAX_LPF], ModelError> {
+    if q_kind.has_dc_gain() {
+        vq.set_mu(mu_q).map_err(|e| err("mu_q", e))?;
+    }
+    Ok(if p_kind == AdpfKind::Complement {
+        closed_gains(lpf, n_lpf, share, warned, ctx)
+    } else {
+        lpf
+    })
+}
+
 /// A p-f reference model that takes the operator's dc gains.
 pub(crate) trait PfGains {
     fn set_mu(&mut self, mu: f64) -> dvpp_control::Result<f64>;

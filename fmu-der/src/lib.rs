@@ -40,6 +40,7 @@ pub mod ports;
 mod preset;
 mod runtime;
 mod step;
+mod unit_vars;
 mod variables;
 
 pub use codes::{AdpfKind, Mode};

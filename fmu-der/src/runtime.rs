@@ -8,7 +8,7 @@ use crate::layer::{self, PfReference};
 use crate::limits;
 use crate::{err, positive, Der, Mode, MAX_LPF};
 use dvpp_control::phasor::internal_voltage;
-use dvpp_control::{Hold, LtiSimulator, Rotation, TDes};
+use dvpp_control::{Hold, LtiSimulator, Rotation};
 use fmi_export::{Context, ModelError, Store};
 use serde::{Deserialize, Serialize};
 
@@ -63,31 +63,7 @@ impl Der {
         ] {
             positive(s, r, name)?;
         }
-        let (h, d) = (s[self.h], s[self.d]);
-        if h < 0.0 {
-            return Err(err(
-                "Tdes.H",
-                format!("= {h}: T_pf = 1/(H s + D) is unstable"),
-            ));
-        }
-        if h != 0.0 && !h.is_normal() {
-            return Err(err(
-                "Tdes.H",
-                format!(
-                    "= {h:e}: must be 0 or at least {:e} (a subnormal inertia overflows T_pf = 1/(H s + D))",
-                    f64::MIN_POSITIVE
-                ),
-            ));
-        }
-        if d <= 0.0 {
-            return Err(err(
-                "Tdes.D",
-                format!("= {d}: T_pf = 1/(H s + D) is not stable (needs D > 0)"),
-            ));
-        }
-        let dq = positive(s, self.dq, "Tdes.Dq")?;
-        let tau_q = positive(s, self.tau_q, "Tdes.tau_q")?;
-        let tdes = TDes::inertia_droop(h, d, dq, tau_q).map_err(|e| err("Tdes", e))?;
+        let tdes = crate::unit_vars::tdes(s, self.h, self.d, self.dq, self.tau_q)?;
 
         let lpf = self.lpf_gains(s);
         let adpf_p = self.adpf_p.build(s, s[self.mu_p], &lpf)?;

@@ -2,7 +2,7 @@
 
 use crate::common::{Outcome, Startup, StepPoint};
 use crate::runtime::{Channel, Runtime};
-use crate::{err, layer, AdpfKind, Der};
+use crate::{layer, Der};
 use fmi_export::{Context, ModelError, Store};
 
 /// Below this terminal voltage (pu) a grid-following unit's PLL has no angle to lock to: the
@@ -41,24 +41,19 @@ impl Der {
         let dv = s[self.v] - rt.common.v0;
         let lpf = self.lpf_gains(s);
         // Dc gains from the operator (the participation bank identity holds while they move).
-        if rt.common.q_kind.has_dc_gain() {
-            rt.common
-                .vq
-                .set_mu(s[self.mu_q])
-                .map_err(|e| err("mu_q", e))?;
-        }
-        let lpf = if rt.common.p_kind == AdpfKind::Complement {
-            let share = s[self.adpf_p.share.expect("complement parameters")];
-            layer::closed_gains(
-                lpf,
-                rt.common.n_lpf,
-                share,
-                &mut rt.common.warned_gains,
-                ctx,
-            )
-        } else {
-            lpf
-        };
+        let share = self.adpf_p.share.map_or(1.0, |r| s[r]);
+        let c = &mut rt.common;
+        let lpf = layer::operator_gains(
+            &mut c.vq,
+            c.q_kind,
+            s[self.mu_q],
+            c.p_kind,
+            lpf,
+            c.n_lpf,
+            share,
+            &mut c.warned_gains,
+            ctx,
+        )?;
         // The set point: the dispatch (ramped in after a start from zero voltage), curtailed to
         // what the primary source allows (a cloud lowers it).
         let ramp = rt.common.t_sync.map_or(1.0, |t0| {

@@ -1,7 +1,8 @@
 //! The FMU's variables: the declaration of every parameter, input and output, with its start value.
 
 use crate::adpf::AdpfParams;
-use crate::{limits, ports, Der, DerConfig, UnitDefaults, MAX_LPF};
+use crate::unit_vars::{par, tun, DcVars, GainVars, PllVars, SourceVars, UnitVars};
+use crate::{limits, ports, Der, DerConfig, UnitDefaults};
 use fmi_export::{Spec, Variables};
 
 impl Der {
@@ -9,72 +10,17 @@ impl Der {
     pub(crate) fn declare_variables(config: &DerConfig, v: &mut Variables) -> Result<Der, String> {
         let u = UnitDefaults::of(config.preset).resized(config.rating)?;
         let io = [ports::P, ports::Q, ports::V, ports::V_ANGLE];
-        let par = |v: &mut Variables, name: &str, start: f64, unit: &str, desc: &str, min: f64| {
-            v.real(Spec::parameter(name, start, unit, desc).min(min))
-        };
-        // Gains, limits and set points a host may retune between steps; structure stays fixed.
-        let tun = |v: &mut Variables, name: &str, start: f64, unit: &str, desc: &str, min: f64| {
-            v.real(Spec::parameter(name, start, unit, desc).min(min).tunable())
-        };
-        let s_rated = par(
-            v,
-            ports::S_RATED,
-            u.s_rated,
-            "MVA",
-            "converter rating",
-            1e-3,
-        );
-        let s_base = par(v, "S_base", 100.0, "MVA", "system base power", 1e-3);
-        let s_dvpp = par(
-            v,
-            ports::S_DVPP,
-            96.0,
-            "MVA",
-            "DVPP base power T_des is specified on",
-            1e-3,
-        );
-        let f_nom = par(v, "f_nom", 50.0, "Hz", "nominal frequency", 1e-3);
-        let mode = v.integer(
-            Spec::parameter(
-                ports::MODE,
-                u.mode.code(),
-                "",
-                "1 = grid-forming, 2 = grid-following",
-            )
-            .range(1.0, 2.0),
-        );
-        let h = par(
-            v,
-            ports::TDES_H,
-            5.55,
-            "s",
-            "virtual inertia of T_pf = 1/(H s + D)",
-            0.0,
-        );
-        let d = par(
-            v,
-            ports::TDES_D,
-            33.33,
-            "pu",
-            "damping (droop gain) of T_pf = 1/(H s + D)",
-            0.0,
-        );
-        let dq = par(
-            v,
-            ports::TDES_DQ,
-            0.01,
-            "pu",
-            "q-v droop of T_qv = Dq (dv = -Dq dq)",
-            0.0,
-        );
-        let tau_q = par(
-            v,
-            "Tdes.tau_q",
-            0.01,
-            "s",
-            "roll-off 1/(tau_q s + 1) of the inverse q-v reference",
-            0.0,
-        );
+        let UnitVars {
+            s_rated,
+            s_base,
+            s_dvpp,
+            f_nom,
+            mode,
+            h,
+            d,
+            dq,
+            tau_q,
+        } = UnitVars::declare(v, &u);
         let r_f = par(
             v,
             ports::R_F,
@@ -93,39 +39,12 @@ impl Der {
         );
         let adpf_p = AdpfParams::declare(v, "p", &u.adpf_p, true);
         let adpf_q = AdpfParams::declare(v, "q", &u.adpf_q, false);
-        let pll_kp = tun(
-            v,
-            "pll.kp",
-            60.0,
-            "1/s",
-            "PLL proportional gain (grid-following)",
-            1e-6,
-        );
-        let pll_ki = tun(
-            v,
-            "pll.ki",
-            240.0,
-            "1/s2",
-            "PLL integral gain (grid-following)",
-            1e-6,
-        );
-        let pll_tau = par(
-            v,
-            "pll.tau",
-            1.0 / 60.0,
-            "s",
-            "roll-off time constant tau_pll of the grid-following references",
-            0.0,
-        );
-        let pll_order = v.integer(
-            Spec::parameter(
-                "pll.order",
-                2,
-                "",
-                "order d of the grid-following p-f roll-off 1/(tau_pll s + 1)^d (the v-q reference has order 1); 2 makes m T_pf^-1 strictly proper for every ADPF, so the PLL's proportional path does not reach the current at the gain H/tau_pll of a first-order roll-off",
-            )
-            .range(0.0, 4.0),
-        );
+        let PllVars {
+            kp: pll_kp,
+            ki: pll_ki,
+            tau: pll_tau,
+            order: pll_order,
+        } = PllVars::declare(v);
         let qpi_kp = tun(
             v,
             "qpi.kp",
@@ -152,47 +71,13 @@ impl Der {
             "grid-forming PI matching controller: integral gain from q error to E",
             0.0,
         );
-        let tau_dc = par(
-            v,
-            "tau_dc",
-            u.tau_dc,
-            "s",
-            "time constant of the dc source following its command",
-            0.0,
-        );
-        let c_dc = par(
-            v,
-            "C_dc",
-            0.096,
-            "pu",
-            "dc-link capacitance on S_rated",
-            0.0,
-        );
-        let g_dc = par(
-            v,
-            "G_dc",
-            0.05,
-            "pu",
-            "dc-link conductance (losses) on S_rated",
-            0.0,
-        );
-        let k_dc = par(
-            v,
-            "k_dc",
-            100.0,
-            "pu",
-            "dc-voltage control gain (source power per pu of v_dc deviation)",
-            0.0,
-        );
-        let dc_zeta = v.real(
-            Spec::parameter(
-                "dc.zeta",
-                0.7,
-                "1",
-                "damping ratio the dc-voltage control's capacitor-power term gives the k_dc, C_dc, tau_dc loop (0: no damping term)",
-            )
-            .range(0.0, 2.0),
-        );
+        let DcVars {
+            tau_dc,
+            c_dc,
+            g_dc,
+            k_dc,
+            zeta: dc_zeta,
+        } = DcVars::declare(v, &u);
         let v_dc_min = v.real(
             Spec::parameter(
                 "v_dc_min",
@@ -278,48 +163,13 @@ impl Der {
             "after a start from zero voltage, the set point ramps from 0 to the dispatch over this time",
             0.0,
         );
-        let storage = v.boolean(Spec::parameter(
-            "storage",
-            u.storage,
-            "",
-            "the primary source can absorb power (a battery): dc source within [-P_avail, P_avail] instead of [0, P_avail]",
-        ));
-        let deload = v.real(
-            Spec::parameter(
-                "deload",
-                1.0,
-                "1",
-                "deloading: the set point stays at or below deload * P_avail - G_dc (reserve for participation)",
-            )
-            .range(1e-3, 1.0)
-            .tunable(),
-        );
-        let p_avail0 = tun(
-            v,
-            ports::P_AVAIL0,
-            u.p_avail0,
-            "pu",
-            "available active power of the primary source, on S_base",
-            0.0,
-        );
-        let avail_t = v.real(
-            Spec::parameter(
-                "avail.t_step",
-                1.0,
-                "s",
-                "time of the availability step (a cloud, a wind drop)",
-            )
-            .tunable(),
-        );
-        let avail_dp = v.real(
-            Spec::parameter(
-                "avail.dP",
-                0.0,
-                "pu",
-                "availability step on S_base (negative = less available power)",
-            )
-            .tunable(),
-        );
+        let SourceVars {
+            storage,
+            deload,
+            p_avail0,
+            avail_t,
+            avail_dp,
+        } = SourceVars::declare(v, &u);
         let redispatch = v.real(
             Spec::parameter(
                 "dispatch.dP",
@@ -356,37 +206,11 @@ impl Der {
             "rad",
             "voltage angle at the regulated point, rotating frame at f_nom",
         ));
-        let mu_p = v.real(
-            Spec::input(
-                ports::MU_P,
-                u.mu_p,
-                "1",
-                "ADPF dc gain of the p-f channel from the operator (static, low-pass)",
-            )
-            .range(0.0, 1.0),
-        );
-        let mu_q = v.real(
-            Spec::input(
-                ports::MU_Q,
-                u.mu_q,
-                "1",
-                "ADPF dc gain of the v-q channel from the operator (static, low-pass)",
-            )
-            .range(0.0, 1.0),
-        );
-        let mu_p_lpf = (1..=MAX_LPF)
-            .map(|k| {
-                v.real(
-                    Spec::input(
-                        &ports::mu_p_lpf(k),
-                        u.mu_p_lpf.get(k - 1).copied().unwrap_or(0.0),
-                        "1",
-                        &format!("complement unit: dc gain of low-pass unit {k} it closes"),
-                    )
-                    .range(0.0, 1.0),
-                )
-            })
-            .collect();
+        let GainVars {
+            mu_p,
+            mu_q,
+            mu_p_lpf,
+        } = GainVars::declare(v, &u);
         let out = |v: &mut Variables, name: &str, unit: &str, desc: &str| {
             v.real(Spec::output(name, unit, desc).initial_dependencies(&io))
         };

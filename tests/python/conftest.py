@@ -1,6 +1,9 @@
 """Where the bundled FMUs are for the fmpy tests (cargo xtask test sets DVPP_DIST)."""
 import os
 import pathlib
+import platform
+import sys
+import warnings
 
 import pytest
 
@@ -13,3 +16,19 @@ FMUS = sorted(DIST.glob("*.fmu")) + sorted((DIST.parent / "variants").glob("*.fm
 def fmu(request):
     return str(request.param)
 
+
+
+def require_dpsim(test_file):
+    """Skip the calling test module, saying why, when DPsim's Python module does not import."""
+    try:
+        import dpsimpy  # noqa: F401
+    except (ImportError, OSError) as error:
+        reason = (
+            f"dpsim cannot be imported ({error.__class__.__name__}: {error}) on CPython "
+            f"{platform.python_version()}, {sys.platform} {platform.machine()}. PyPI has dpsim 1.4.0 "
+            "wheels for CPython 3.10-3.13 on x86_64 Linux (manylinux_2_28) and on win_amd64 only; "
+            "cargo xtask test installs it where such a wheel exists (xtask/src/main.rs, PYTHON_PACKAGES)"
+        )
+        print(f"{test_file} skipped: {reason}")
+        warnings.warn(reason)
+        pytest.skip(reason, allow_module_level=True)

@@ -16,25 +16,13 @@ The EMT runs also go with the FMU at 1 ms over the network at 50 µs ("emt-fmu1m
 the generic DER with Tdes.H = 0.2 s (dpsim_host.UNIT), so that its droop settles within 0.1 s and
 a run lasts 0.5-1.5 s; one dynamic-phasor island run keeps the case study's H = 5.55 s.
 """
-import platform
-import sys
-import warnings
 
 import numpy as np
 import pytest
 
-try:
-    import dpsimpy  # noqa: F401
-except (ImportError, OSError) as error:
-    REASON = (
-        f"dpsim cannot be imported ({error.__class__.__name__}: {error}) on CPython "
-        f"{platform.python_version()}, {sys.platform} {platform.machine()}. PyPI has dpsim 1.4.0 "
-        "wheels for CPython 3.10-3.13 on x86_64 Linux (manylinux_2_28) and on win_amd64 only; "
-        "cargo xtask test installs it where such a wheel exists (xtask/src/main.rs, PYTHON_PACKAGES)"
-    )
-    print(f"test_dpsim.py skipped: {REASON}")
-    warnings.warn(REASON)
-    pytest.skip(REASON, allow_module_level=True)
+from conftest import require_dpsim  # noqa: E402
+
+require_dpsim("test_dpsim.py")
 
 import dpsim_host as host  # noqa: E402
 

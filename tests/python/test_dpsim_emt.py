@@ -12,26 +12,14 @@ modulation (tests/python/dpsim_emt_host.py). Grid-forming, the generic 60 MVA un
    to p_set within 1 s, no limit acts, q stays bounded; here with Tdes.H = 1 s (with 5.55 s the
    swing against the source decays at ~1/s and takes ~4 s: see the host's script output).
 """
-import platform
-import sys
 import tempfile
-import warnings
 
 import numpy as np
 import pytest
 
-try:
-    import dpsimpy  # noqa: F401
-except (ImportError, OSError) as error:
-    REASON = (
-        f"dpsim cannot be imported ({error.__class__.__name__}: {error}) on CPython "
-        f"{platform.python_version()}, {sys.platform} {platform.machine()}. PyPI has dpsim 1.4.0 "
-        "wheels for CPython 3.10-3.13 on x86_64 Linux (manylinux_2_28) and on win_amd64 only; "
-        "cargo xtask test installs it where such a wheel exists (xtask/src/main.rs, PYTHON_PACKAGES)"
-    )
-    print(f"test_dpsim_emt.py skipped: {REASON}")
-    warnings.warn(REASON)
-    pytest.skip(REASON, allow_module_level=True)
+from conftest import require_dpsim  # noqa: E402
+
+require_dpsim("test_dpsim_emt.py")
 
 import dpsim_emt_host as host  # noqa: E402
 

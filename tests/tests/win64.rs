@@ -205,7 +205,7 @@ fn win64_binaries_under_wine_match_linux64() {
     let prefix = Path::new(env!("CARGO_TARGET_TMPDIR")).join("wineprefix");
 
     let mut worst_overall: f64 = 0.0;
-    for ((id, dir, md), form) in fmus.iter().zip(URI_FORMS) {
+    for ((id, dir, md), &form) in fmus.iter().zip(URI_FORMS.iter().cycle()) {
         let (inputs, outputs) = inputs_and_outputs(md);
         let resources = dir.join("resources");
         let common = |c: &mut Command, library: String, uri: &str| {

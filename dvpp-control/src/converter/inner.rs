@@ -160,14 +160,7 @@ impl InnerLoops {
         // Voltage loop.
         let ev = v_ref - m.v_c;
         let ff = m.i_g + m.v_c.rot90() * (omega * self.data.c_f);
-        let raw = ff + ev * g.kp_v + self.xi_v;
-        let n = raw.norm();
-        self.current_limited = n > self.i_max;
-        self.i_ref = if self.current_limited {
-            raw * (self.i_max / n)
-        } else {
-            raw
-        };
+        self.limit_current(ff + ev * g.kp_v + self.xi_v);
         if !self.current_limited {
             self.xi_v = self.xi_v + ev * (g.ki_v * h);
         }
@@ -184,14 +177,19 @@ impl InnerLoops {
         v_m_max: f64,
         h: f64,
     ) -> Dq {
-        let n = i_ref.norm();
+        self.limit_current(i_ref);
+        self.current_step(m, self.i_ref, omega, v_m_max, h)
+    }
+
+    /// The current reference `raw`, its magnitude held at `I_max` (direction kept).
+    fn limit_current(&mut self, raw: Dq) {
+        let n = raw.norm();
         self.current_limited = n > self.i_max;
         self.i_ref = if self.current_limited {
-            i_ref * (self.i_max / n)
+            raw * (self.i_max / n)
         } else {
-            i_ref
+            raw
         };
-        self.current_step(m, self.i_ref, omega, v_m_max, h)
     }
 
     fn current_step(

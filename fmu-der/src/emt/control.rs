@@ -7,7 +7,7 @@ use crate::{err, positive, AdpfKind, Mode};
 use dvpp_control::converter::{
     Abc, ConverterData, Dq, FilterMeasurement, InnerDesign, InnerLoops, Pll,
 };
-use dvpp_control::{TDes, VqModel};
+use dvpp_control::VqModel;
 use fmi_export::{Context, ModelError, Store};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -147,22 +147,7 @@ impl DerEmt {
         ] {
             positive(s, r, name)?;
         }
-        let (h, d) = (s[self.h], s[self.d]);
-        if !(h >= 0.0 && (h == 0.0 || h.is_normal())) {
-            return Err(err(
-                "Tdes.H",
-                format!("= {h}: T_pf = 1/(H s + D) needs H >= 0"),
-            ));
-        }
-        if d <= 0.0 {
-            return Err(err(
-                "Tdes.D",
-                format!("= {d}: T_pf = 1/(H s + D) is not stable (needs D > 0)"),
-            ));
-        }
-        let dq = positive(s, self.dq, "Tdes.Dq")?;
-        let tau_q = positive(s, self.tau_q, "Tdes.tau_q")?;
-        let tdes = TDes::inertia_droop(h, d, dq, tau_q).map_err(|e| err("Tdes", e))?;
+        let tdes = crate::unit_vars::tdes(s, self.h, self.d, self.dq, self.tau_q)?;
         let lpf = self.lpf_gains(s);
         let adpf_p = self.adpf_p.build(s, s[self.mu_p], &lpf)?;
         let adpf_q = self.adpf_q.build(s, s[self.mu_q], &[])?;
@@ -318,14 +303,17 @@ impl DerEmt {
         let dv = v - rt.v0;
 
         // The operator's dc gains.
-        if rt.q_kind.has_dc_gain() {
-            rt.vq.set_mu(s[self.mu_q]).map_err(|e| err("mu_q", e))?;
-        }
-        let mut lpf = self.lpf_gains(s);
-        if rt.p_kind == AdpfKind::Complement {
-            let share = s[self.adpf_p.share.expect("complement parameters")];
-            lpf = layer::closed_gains(lpf, rt.n_lpf, share, &mut rt.warned_gains, ctx);
-        }
+        let lpf = layer::operator_gains(
+            &mut rt.vq,
+            rt.q_kind,
+            s[self.mu_q],
+            rt.p_kind,
+            self.lpf_gains(s),
+            rt.n_lpf,
+            self.adpf_p.share.map_or(1.0, |r| s[r]),
+            &mut rt.warned_gains,
+            ctx,
+        )?;
         let p_set = rt.p0.min(self.headroom(s, t));
         let v_dc = s[self.v_dc];
         let v_m_max = 0.5 * s[self.vdc_ratio] * v_dc.max(0.0);

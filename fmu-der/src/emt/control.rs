@@ -170,7 +170,8 @@ impl DerEmt {
         let mut inner = InnerLoops::new(&design, data, omega_b);
 
         // The measured operating point, taken as a steady state: the frame starts on the
-        // capacitor voltage (grid-forming) or on the grid-side voltage (grid-following).
+        // voltage behind the virtual resistance (grid-forming) or on the grid-side voltage
+        // (grid-following).
         let at_zero = self.measure(s, 0.0);
         let rho = match mode {
             Mode::GridForming => {

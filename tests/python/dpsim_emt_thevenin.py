@@ -222,14 +222,18 @@ def run(t_end, h=H_STEP, root=None):
     # The operator at the scenario's initial point (its bundled start values), its gains the
     # units' start values.
     operator = Slave(root / "operator.fmu", "operator")
-    mu_vr = [[operator.vr(f"der[{k + 1}].{n}") for n in OPERATOR_OUT[name]] for k, name in enumerate(UNITS)]
-    mu = [operator.fmu.getReal(vrs) for vrs in mu_vr]
+    mu_names = [OPERATOR_OUT[name] for name in UNITS]
+    mu_vr = [operator.vr(f"der[{k + 1}].{n}") for k, names in enumerate(mu_names) for n in names]
+    mu_split = np.cumsum([len(names) for names in mu_names])[:-1]
+    mu = np.split(np.array(operator.fmu.getReal(mu_vr)), mu_split)
     ders = []
     for k, (name, _, _) in enumerate(units):
-        der = DerEmt(dict(zip(OPERATOR_OUT[name], mu[k])), circuit.converters[k].measure(), name=name,
+        der = DerEmt(dict(zip(mu_names[k], mu[k])), circuit.converters[k].measure(), name=name,
                      path=root / f"{name}.fmu")
-        der.vr_mu = [der.vr(n) for n in OPERATOR_OUT[name]]
-        der.vr_op = [der.vr(n) for n in DER_TO_OPERATOR]
+        # One setReal and one getReal a step: the gains after the measurements, P_avail and
+        # p_set after the outputs.
+        der.vr_in = der.vr_in + [der.vr(n) for n in mu_names[k]]
+        der.vr_out = der.vr_out + [der.vr(n) for n in DER_TO_OPERATOR]
         ders.append(der)
     op_in = [operator.vr(f"der[{k + 1}].{n}") for k in range(len(UNITS)) for n in ("P_avail", "p_set", "p", "q")]
     op_in += [operator.vr(f"pcc.{n}") for n in ("p", "q", "f", "v")]
@@ -248,15 +252,12 @@ def run(t_end, h=H_STEP, root=None):
     f = 1.0
     rec["t"][0], rec["f"][0], rec["dw_th"][0], rec["v"][0] = 0.0, f, 0.0, abs(v)
     rec["p"][:, 0], rec["q"][:, 0] = [x.real for x in s], [x.imag for x in s]
-    to_operator = [der.fmu.getReal(der.vr_op) for der in ders]
+    to_operator = [der.fmu.getReal(der.vr_out[-2:]) for der in ders]
     started = time.perf_counter()
     for k in range(n):
         t = k * h
         # The units from the solution at t and the operator's gains of t.
-        outs = []
-        for der, c, m in zip(ders, circuit.converters, mu):
-            der.fmu.setReal(der.vr_mu, m)
-            outs.append(der.step(t, h, c.measure()))
+        outs = [der.step(t, h, [*c.measure(), *m]) for der, c, m in zip(ders, circuit.converters, mu)]
         # The operator from the units' outputs and the network's measurements at t.
         values = []
         for (p_avail, p_set), x in zip(to_operator, s):
@@ -264,8 +265,8 @@ def run(t_end, h=H_STEP, root=None):
         p_sum = sum(s)
         operator.fmu.setReal(op_in, values + [p_sum.real, p_sum.imag, f, abs(v)])
         operator.fmu.doStep(t, h)
-        mu = [operator.fmu.getReal(vrs) for vrs in mu_vr]
-        to_operator = [der.fmu.getReal(der.vr_op) for der in ders]
+        mu = np.split(np.array(operator.fmu.getReal(mu_vr)), mu_split)
+        to_operator = [out[-2:] for out in outs]
         # The sources for the solution at t + h.
         while switches and switches[0][0] == k + 1:
             switches.pop(0)[1].close()
@@ -300,7 +301,8 @@ def own_thevenin(out_dir, t_end=None):
 
     ssp = bundle() / "emt_thevenin.ssp"
     cosim = DIST.parents[1] / "target" / "release" / "cosim"
-    if not (ssp.exists() and cosim.exists()):
+    fmus = [bundle() / f"{name}.fmu" for name in (*UNITS, "operator", "plant")]
+    if not all(p.exists() for p in (ssp, cosim, *fmus)):
         return None
     csv = os.path.join(out_dir, "emt_thevenin.csv")
     args = [str(cosim), str(ssp), "--out", csv, "--record", ",".join(OWN_SIGNALS[1:])]

@@ -50,6 +50,7 @@ ABC = np.array([1.0, A120**2, A120])  # the phasor of phase a, b, c of a positiv
 # Instantaneous phase values (a, b, c) to the amplitude-invariant space vector.
 SPACE_VECTOR = (2.0 / 3.0) * np.array([1.0, A120, A120**2])
 R_OPEN = 1e12  # ohm, an open switch
+R_CLOSED = 1e-3  # a closed switch, of its load's resistance
 H_STEP = 50e-6
 
 INPUTS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c", "ig_a", "ig_b", "ig_c", "v_dc")
@@ -114,12 +115,13 @@ class Network:
         return self.add(source, self.gnd, n)
 
     def switched_load(self, name, n, z, z_b):
-        """A series R-L load (z pu of z_b) behind an open switch at n; returns the switch."""
+        """A series R-L load (z pu of z_b) behind an open switch at n; returns the switch. The
+        closed switch's resistance is taken from the load's, so that the closed branch is z."""
         n_sw = self.node(f"{name}_sw", 0.0)
         switch = self.ph3.Switch(f"sw_{name}", self.log)
-        switch.set_parameters(R_OPEN * np.eye(3), 1e-3 * z_b * np.eye(3), False)
+        switch.set_parameters(R_OPEN * np.eye(3), R_CLOSED * z.real * z_b * np.eye(3), False)
         self.add(switch, n, n_sw)
-        self.rl(name, n_sw, self.gnd, z, z_b, 0.0, 0.0)
+        self.rl(name, n_sw, self.gnd, z - R_CLOSED * z.real, z_b, 0.0, 0.0)
         return switch
 
     def start(self, name, h):

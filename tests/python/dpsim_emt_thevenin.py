@@ -22,10 +22,17 @@ what the plant FMU does beyond the circuit:
 Coupling, every 50 µs, as our master's Jacobi steps do between the controllers: the units step
 from DPsim's solution at t_k and the operator's gains of t_k, the operator from the units'
 outputs and the network's measurements at t_k. DPsim has no dc link: v_dc = 1 (the plant's dc
-links stay within 5e-3 of 1 and its primary-source lags act only on the dc side).
+links stay within 1 % of 1; the FMU divides its modulation by the v_dc it reads, so the
+converter's voltage does not depend on it: fed the plant's v_dc traces, this host's figures
+did not change in their printed digits).
 
 The run starts flat from the plant's steady state (solved here as a phasor circuit, the units
-injecting the plant's p0 + j q0 at the PCC). ``python tests/python/dpsim_emt_thevenin.py
+injecting the plant's p0 + j q0 at the PCC). One difference remains at the load step: the plant
+connects the load with zero current at t_on and steps exactly, DPsim's trapezoidal rule has the
+closed switch's inductive branch carry (h/2L) v at the solution at t_on, about half a step
+early; the units' p, which jumps by 0.02-0.04 pu in that sample (their instantaneous share of
+the step through the network), differs there, and that millisecond carries most of the units'
+Δp difference. ``python tests/python/dpsim_emt_thevenin.py
 [--end T]`` prints the comparison with our master's run of the bundle.
 """
 import cmath
@@ -322,22 +329,27 @@ def nrmse(x, ref):
 
 def compare(rec, own, f_nom=host.F_NOM):
     """The PCC frequency deviations (pu) against our master's: NRMSE by its peak |Δf|, the nadirs
-    (Hz, s); each unit's Δp (p minus its initial) NRMSE by its peak |Δp|; flatness before the
-    step."""
+    (Hz, s); each unit's Δp (p minus its initial) NRMSE by its peak |Δp|, over the run and from
+    1 ms after the load step on (the step's first sample differs: see the module's docstring);
+    flatness before the step."""
     t = rec["t"]
     df = rec["f"] - 1.0
     df_own = np.interp(t, own["time"], own["plant.pcc.f"] - 1.0)
     k_own, k = np.argmin(own["plant.pcc.f"]), np.argmin(df)
     k_step = round(rec["t_step"] / rec["h"])
-    dp = {}
+    k_late = k_step + round(1e-3 / rec["h"])
+    dp, dp_late = {}, {}
     for j, name in enumerate(UNITS):
         p_own = own[f"plant.der[{j + 1}].p"]
-        dp[name] = nrmse(rec["p"][j] - rec["p"][j][0], np.interp(t, own["time"], p_own - p_own[0]))
+        x, ref = rec["p"][j] - rec["p"][j][0], np.interp(t, own["time"], p_own - p_own[0])
+        dp[name] = nrmse(x, ref)
+        dp_late[name] = math.sqrt(np.mean((x[k_late:] - ref[k_late:]) ** 2)) / np.max(np.abs(ref))
     return {"nrmse": nrmse(df, df_own),
             "nadir": (df[k] * f_nom, t[k]),
             "nadir_own": ((own["plant.pcc.f"][k_own] - 1.0) * f_nom, own["time"][k_own]),
             "end": (df[-1] * f_nom, df_own[-1] * f_nom),
             "dp": dp,
+            "dp_late": dp_late,
             "df_before": np.max(np.abs(df[:k_step])),
             "dp_before": np.max(np.abs(rec["p"][:, :k_step] - rec["p"][:, :1])),
             "v0": (abs(rec["v0"]), own["plant.pcc.v"][0])}
@@ -348,10 +360,12 @@ def report(rec, c):
           f"({rec['wall'] / rec['t_end']:.2f} s per simulated s)")
     print(f"PCC at t = 0: {c['v0'][0]:.9f} pu (our master {c['v0'][1]:.9f}); before the step: "
           f"max |Δf| {c['df_before']:.1e} pu, max |Δp| {c['dp_before']:.1e} pu")
-    print(f"PCC Δf NRMSE {c['nrmse'] * 100:.3f} % of the peak; nadir {c['nadir'][0]:.5f} Hz at "
-          f"{c['nadir'][1]:.3f} s (our master {c['nadir_own'][0]:.5f} Hz at {c['nadir_own'][1]:.3f} s); "
-          f"at {rec['t_end']:g} s {c['end'][0]:.5f} Hz (ours {c['end'][1]:.5f})")
-    print("units' Δp NRMSE: " + ", ".join(f"{n} {x * 100:.2f} %" for n, x in c["dp"].items()))
+    print(f"PCC Δf NRMSE {c['nrmse']:.1e} of the peak; nadir {c['nadir'][0]:.6f} Hz at "
+          f"{c['nadir'][1]:.4f} s (our master {c['nadir_own'][0]:.6f} Hz at {c['nadir_own'][1]:.4f} s); "
+          f"at {rec['t_end']:g} s {c['end'][0]:.6f} Hz (ours {c['end'][1]:.6f})")
+    print("units' Δp NRMSE (by the peak of our master's): " + ", ".join(f"{n} {x:.1e}" for n, x in c["dp"].items())
+          + f"; from {rec['t_step'] * 1e3 + 1:g} ms on: "
+          + ", ".join(f"{n} {x:.1e}" for n, x in c["dp_late"].items()))
     print(f"flags {rec['flags']}; warnings {rec['warnings']}")
 
 

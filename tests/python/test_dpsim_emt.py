@@ -115,7 +115,7 @@ def test_thevenin_dvpp_matches_our_master():
     print()
     thevenin.report(rec, c)
     assert abs(c["v0"][0] - c["v0"][1]) < 1e-9  # the same initial point
-    assert c["df_before"] < 1e-6 and c["dp_before"] < 1e-3  # flat before the step
+    assert c["df_before"] < 1e-6 and c["dp_before"] < 2e-4  # flat before the step
     assert c["nrmse"] < 0.03
     assert abs(c["nadir"][0] / c["nadir_own"][0] - 1) < 0.03
     assert not any(on for flags in rec["flags"].values() for on in flags.values()), rec["flags"]

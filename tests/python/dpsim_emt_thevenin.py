@@ -195,6 +195,7 @@ class TheveninCircuit:
         self.e_ref.set(instantaneous(self.e0 * cmath.exp(1j * delta), t))
 
     def next(self):
+        """One DPsim step; returns the time of its solution."""
         t = self.t_solve
         self.t_solve = self.sim.next()
         return t
@@ -204,6 +205,7 @@ class TheveninCircuit:
         self.net.cleanup()
 
 
+# The operator's gains each unit reads and the outputs the operator reads, as the SSD wires them.
 OPERATOR_OUT = {"wind": ("mu_p", "mu_q"), "pv": ("mu_p", "mu_q"), "bess": ("mu_q", "mu_p_lpf[1]", "mu_p_lpf[2]")}
 DER_TO_OPERATOR = ("P_avail", "p_set")
 SIGNALS = ("t", "f", "dw_th", "v")
@@ -252,7 +254,7 @@ def run(t_end, h=H_STEP, root=None):
     v, s = circuit.pcc()
     meter = PccMeter(cmath.phase(v), plant.f_filter_t, h)
     swing = Swing(plant.th["H"], plant.th["D"], circuit.p_m, h)
-    switches = sorted((round(t_on / h), sw) for t_on, sw in circuit.switches)
+    switches = sorted(((round(t_on / h), sw) for t_on, sw in circuit.switches), key=lambda x: x[0])
     n = round(t_end / h)
     rec = {k: np.empty(n + 1) for k in SIGNALS}
     rec["p"], rec["q"] = np.empty((len(UNITS), n + 1)), np.empty((len(UNITS), n + 1))

@@ -50,6 +50,7 @@ ABC = np.array([1.0, A120**2, A120])  # the phasor of phase a, b, c of a positiv
 # Instantaneous phase values (a, b, c) to the amplitude-invariant space vector.
 SPACE_VECTOR = (2.0 / 3.0) * np.array([1.0, A120, A120**2])
 R_OPEN = 1e12  # ohm, an open switch
+R_CLOSED = 1e-3  # a closed switch, of its load's resistance
 H_STEP = 50e-6
 
 INPUTS = ("v_a", "v_b", "v_c", "i_a", "i_b", "i_c", "ig_a", "ig_b", "ig_c", "v_dc")
@@ -69,122 +70,116 @@ def grid_line(scr, r_over_x=0.1):
     return complex(r_over_x * x, x)
 
 
-class Circuit:
-    """The converter's circuit and its network in DPsim's three-phase EMT domain, per unit on
-    ``s_rated`` (VA) in the FMU's convention, in volts, ohms, henries and farads inside.
+class Network:
+    """DPsim's three-phase EMT nodes and components under construction, at the one voltage level
+    V_LL; impedances in per unit of a base impedance given with them (a unit's rating or the
+    network's S_base). DPsim's components and solver open their logs under ./logs (empty with
+    logging off): the circuit is built and started in a directory of its own, out of the working
+    tree."""
 
-    ``f``: the filter and transformer data as the FMU has them (R_f, L_f, C_f, R_t, L_t, pu on
-    S_rated, the L and C as their reactance and susceptance at f_nom). ``load`` and ``step``:
-    series R-L loads (pu of S_rated at 1 pu voltage), the step behind an open switch.
-    ``z_line``: None (an island) or the series R-L line (pu on S_rated) from the PCC to a stiff
-    source. The initial point: the PCC at v0∠0, the converter feeding ``s0`` (pu on S_rated) into
-    the PCC (in an island the load, whatever s0 is); every node and inductor current starts at its
-    steady state (DPsim's initialization from node voltages), so a run starts flat.
-    """
-
-    def __init__(self, s_rated, f, load, step, z_line=None, s0=None, v0=1.0, h=H_STEP, timing="mid"):
-        self.z_b = V_LL**2 / s_rated  # ohm
-        self.i_r = (2.0 / 3.0) * s_rated / V_R  # A, the rated peak current
-        self.h, self.timing = h, timing
-        # DPsim's components and solver open their logs under ./logs (empty with logging off):
-        # build the circuit in a directory of its own, out of the working tree.
-        self._tmp = tempfile.TemporaryDirectory(prefix="dpsim-emt-")
-        cwd = os.getcwd()
-        os.chdir(self._tmp.name)
-        try:
-            self._build(f, load, step, z_line, s0, v0)
-        finally:
-            os.chdir(cwd)
-
-    def _build(self, f, load, step, z_line, s0, v0):
+    def __init__(self):
         import dpsimpy
 
-        emt, ph3, log = dpsimpy.emt, dpsimpy.emt.ph3, dpsimpy.LogLevel.off
-        z_b = self.z_b
-        nodes, comps = [], []
-        gnd = emt.SimNode.gnd
+        self.dpsimpy, self.log = dpsimpy, dpsimpy.LogLevel.off
+        self.ph3, self.gnd = dpsimpy.emt.ph3, dpsimpy.emt.SimNode.gnd
+        self.nodes, self.comps = [], []
+        self._tmp = tempfile.TemporaryDirectory(prefix="dpsim-emt-")
+        self._cwd = os.getcwd()
+        os.chdir(self._tmp.name)
 
-        def node(name, x):
-            v = x * V_LL
-            n = emt.SimNode(name, dpsimpy.PhaseType.ABC, [v, v * A120**2, v * A120])
-            nodes.append(n)
-            return n
+    def node(self, name, x):
+        """A node starting at the per-unit phasor x (DPsim takes line-to-line RMS volts)."""
+        v = x * V_LL
+        n = self.dpsimpy.emt.SimNode(name, self.dpsimpy.PhaseType.ABC, [v, v * A120**2, v * A120])
+        self.nodes.append(n)
+        return n
 
-        def add(comp, a, b, value):
+    def add(self, comp, a, b, value=None):
+        if value is not None:
             comp.set_parameters(value * np.eye(3))
-            comp.connect([a, b])
-            comps.append(comp)
-            return comp
+        comp.connect([a, b])
+        self.comps.append(comp)
+        return comp
 
-        def rl(name, a, b, z, v_a, i):
-            """Series R-L (z pu on S_rated) from a to b; v_a the voltage at a, i the current
-            (a to b). Returns the inductor: its i_intf is the current from b to a."""
-            n = node(f"{name}_rl", v_a - z.real * i)
-            add(ph3.Resistor(f"r_{name}", log), a, n, z.real * z_b)
-            return add(ph3.Inductor(f"l_{name}", log), n, b, z.imag * z_b / W_NOM)
+    def rl(self, name, a, b, z, z_b, v_a, i):
+        """Series R-L (z pu of z_b) from a to b; v_a the voltage at a, i the current (a to b).
+        Returns the inductor: its i_intf is the current from b to a."""
+        n = self.node(f"{name}_rl", v_a - z.real * i)
+        self.add(self.ph3.Resistor(f"r_{name}", self.log), a, n, z.real * z_b)
+        return self.add(self.ph3.Inductor(f"l_{name}", self.log), n, b, z.imag * z_b / W_NOM)
 
-        # The steady state in per unit (phasors), from the PCC at v0∠0.
-        z_f, z_t = complex(f["R_f"], f["L_f"]), complex(f["R_t"], f["L_t"])
-        z_load = 1.0 / load.conjugate()
-        v_pcc = complex(v0)
-        i_load = v_pcc / z_load
-        if z_line is None:
-            i_g = i_load
-        else:
-            i_g = s0.conjugate() / v_pcc.conjugate()
-        v_cap = v_pcc + z_t * i_g
-        i_f = i_g + 1j * f["C_f"] * v_cap
-        v_conv = v_cap + z_f * i_f
-        self.v_conv0 = v_conv
+    def controlled_source(self, name, n, x):
+        """A controlled voltage source from ground to n, starting at the phasor x (pu)."""
+        source = self.ph3.ControlledVoltageSource(name, self.log)
+        source.set_parameters(instantaneous(x, 0.0))
+        return self.add(source, self.gnd, n)
 
-        n_conv = node("conv", v_conv)
-        self.source = ph3.ControlledVoltageSource("conv", log)
-        self.source.set_parameters(self.instantaneous(v_conv, 0.0))
-        self.source.connect([gnd, n_conv])
-        comps.append(self.source)
-        self.l_f = rl("f", n_conv, n_cap := node("cap", v_cap), z_f, v_conv, i_f)
-        add(ph3.Capacitor("c_f", log), n_cap, gnd, f["C_f"] / (z_b * W_NOM))
-        self.l_t = rl("t", n_cap, n_pcc := node("pcc", v_pcc), z_t, v_cap, i_g)
-        rl("load", n_pcc, gnd, z_load, v_pcc, i_load)
-        n_sw = node("sw", 0.0)
-        self.switch = ph3.Switch("sw", log)
-        self.switch.set_parameters(R_OPEN * np.eye(3), 1e-3 * z_b * np.eye(3), False)
-        self.switch.connect([n_pcc, n_sw])
-        comps.append(self.switch)
-        rl("step", n_sw, gnd, 1.0 / step.conjugate(), 0.0, 0.0)
-        if z_line is not None:
-            i_line = i_g - i_load
-            v_grid = v_pcc - z_line * i_line
-            n_grid = node("grid", v_grid)
-            rl("line", n_pcc, n_grid, z_line, v_pcc, i_line)
-            grid = ph3.VoltageSource("grid", log)
-            v = v_grid * V_LL
-            grid.set_parameters(np.array([[v], [v * A120**2], [v * A120]]), F_NOM)
-            grid.connect([gnd, n_grid])
-            comps.append(grid)
-            self.v_grid0 = v_grid
+    def switched_load(self, name, n, z, z_b):
+        """A series R-L load (z pu of z_b) behind an open switch at n; returns the switch. The
+        closed switch's resistance is taken from the load's, so that the closed branch is z."""
+        n_sw = self.node(f"{name}_sw", 0.0)
+        switch = self.ph3.Switch(f"sw_{name}", self.log)
+        switch.set_parameters(R_OPEN * np.eye(3), R_CLOSED * z.real * z_b * np.eye(3), False)
+        self.add(switch, n, n_sw)
+        self.rl(name, n_sw, self.gnd, z - R_CLOSED * z.real, z_b, 0.0, 0.0)
+        return switch
 
-        system = dpsimpy.SystemTopology(F_NOM, nodes, comps)
-        sim = dpsimpy.Simulation("dvpp_der_emt", log)
-        sim.set_system(system)
+    def start(self, name, h):
+        """The simulation of this circuit at step h, initialized from the nodes' voltages and
+        started (no solution yet: the first next() solves at t = h)."""
+        dpsimpy = self.dpsimpy
+        sim = dpsimpy.Simulation(name, self.log)
+        sim.set_system(dpsimpy.SystemTopology(F_NOM, self.nodes, self.comps))
         sim.set_domain(dpsimpy.Domain.EMT)
-        sim.set_time_step(self.h)
+        sim.set_time_step(h)
         sim.set_final_time(1e6)
         sim.do_init_from_nodes_and_terminals(True)
-        sim.start()  # no solution yet: the first next() solves at t = h
-        self.sim = sim
-        # Attribute handles: ~1 µs a read or write, the properties ~40 µs. The controlled
-        # source's V_ref is a 3x1 real vector of instantaneous volts (its property raises).
+        try:
+            sim.start()
+        finally:
+            os.chdir(self._cwd)
+        return sim
+
+    def cleanup(self):
+        self._tmp.cleanup()
+
+
+def instantaneous(x, t):
+    """The three instantaneous phase voltages (V, 3x1) of the phasor x (pu) at time t."""
+    return (V_R * (x * cmath.exp(1j * W_NOM * t) * ABC).real).reshape(3, 1)
+
+
+class Converter:
+    """One averaged converter (a controlled voltage source), its RLC filter (R_f, L_f; C_f in
+    star to ground) and its transformer (series R_t-L_t) into the node ``n_pcc``, per unit on
+    ``s_rated`` (VA) in the FMU's convention. ``f``: the filter and transformer data as the FMU
+    has them (pu on S_rated, the L and C as their reactance and susceptance at f_nom). Starts at
+    its steady state with the PCC at the phasor ``v_pcc`` and the grid-side current ``i_g``
+    (pu of the rated peak current, toward the PCC)."""
+
+    def __init__(self, net, name, s_rated, f, n_pcc, v_pcc, i_g):
+        self.z_b = V_LL**2 / s_rated  # ohm
+        self.i_r = (2.0 / 3.0) * s_rated / V_R  # A, the rated peak current
+        z_f, z_t = complex(f["R_f"], f["L_f"]), complex(f["R_t"], f["L_t"])
+        v_cap = v_pcc + z_t * i_g
+        i_f = i_g + 1j * f["C_f"] * v_cap
+        self.v_conv0 = v_cap + z_f * i_f
+        n_conv = net.node(f"{name}_conv", self.v_conv0)
+        self.source = net.controlled_source(f"{name}_conv", n_conv, self.v_conv0)
+        n_cap = net.node(f"{name}_cap", v_cap)
+        self.l_f = net.rl(f"{name}_f", n_conv, n_cap, z_f, self.z_b, self.v_conv0, i_f)
+        net.add(net.ph3.Capacitor(f"{name}_c_f", net.log), n_cap, net.gnd, f["C_f"] / (self.z_b * W_NOM))
+        self.l_t = net.rl(f"{name}_t", n_cap, n_pcc, z_t, self.z_b, v_cap, i_g)
+        self.n_cap = n_cap
+
+    def bind(self):
+        """The attribute handles, once the simulation started (~1 µs a read or write, the
+        properties ~40 µs). The controlled source's V_ref is a 3x1 real vector of instantaneous
+        volts (its property raises)."""
         self.v_ref = self.source.attr("V_ref")
-        self.v_cap, self.v_pcc = n_cap.attr("v"), n_pcc.attr("v")
+        self.v_cap = self.n_cap.attr("v")
         self.i_f, self.i_g = self.l_f.attr("i_intf"), self.l_t.attr("i_intf")
         self.last = self.v_ref.get()[:, 0] / V_R  # the converter's voltage (pu) at t = 0
-        self.t_solve = self.h
-
-    @staticmethod
-    def instantaneous(x, t):
-        """The three instantaneous phase voltages (V, 3x1) of the phasor x (pu) at time t."""
-        return (V_R * (x * cmath.exp(1j * W_NOM * t) * ABC).real).reshape(3, 1)
 
     def measure(self):
         """The FMU's inputs from DPsim's latest solution: v_a..c, i_a..c, ig_a..c (pu), v_dc = 1.
@@ -195,17 +190,71 @@ class Circuit:
         ig = -self.i_g.get()[:, 0] / self.i_r
         return [*v, *i, *ig, 1.0]
 
+    def apply(self, v_conv, timing="mid"):
+        """The converter's phase voltages (pu of v_r, as the FMU meant them held over the next
+        step) into the source for DPsim's next solution (see the module's docstring)."""
+        v_conv = np.asarray(v_conv)
+        x = 0.5 * (self.last + v_conv) if timing == "mid" else v_conv
+        self.last = v_conv
+        self.v_ref.set((V_R * x).reshape(3, 1))
+
+
+class Circuit:
+    """One converter (``Converter``) and its network in DPsim's three-phase EMT domain, per unit
+    on ``s_rated`` (VA) in the FMU's convention, in volts, ohms, henries and farads inside.
+
+    ``load`` and ``step``: series R-L loads (pu of S_rated at 1 pu voltage), the step behind an
+    open switch. ``z_line``: None (an island) or the series R-L line (pu on S_rated) from the PCC
+    to a stiff source. The initial point: the PCC at v0∠0, the converter feeding ``s0`` (pu on
+    S_rated) into the PCC (in an island the load, whatever s0 is); every node and inductor current
+    starts at its steady state (DPsim's initialization from node voltages), so a run starts flat.
+    """
+
+    def __init__(self, s_rated, f, load, step, z_line=None, s0=None, v0=1.0, h=H_STEP, timing="mid"):
+        self.h, self.timing = h, timing
+        net = self.net = Network()
+        z_b = V_LL**2 / s_rated
+        # The steady state in per unit (phasors), from the PCC at v0∠0.
+        z_load = 1.0 / load.conjugate()
+        v_pcc = complex(v0)
+        i_load = v_pcc / z_load
+        i_g = i_load if z_line is None else s0.conjugate() / v_pcc.conjugate()
+        n_pcc = net.node("pcc", v_pcc)
+        self.converter = Converter(net, "unit", s_rated, f, n_pcc, v_pcc, i_g)
+        net.rl("load", n_pcc, net.gnd, z_load, z_b, v_pcc, i_load)
+        self.switch = net.switched_load("step", n_pcc, 1.0 / step.conjugate(), z_b)
+        if z_line is not None:
+            i_line = i_g - i_load
+            v_grid = v_pcc - z_line * i_line
+            n_grid = net.node("grid", v_grid)
+            net.rl("line", n_pcc, n_grid, z_line, z_b, v_pcc, i_line)
+            grid = net.ph3.VoltageSource("grid", net.log)
+            v = v_grid * V_LL
+            grid.set_parameters(np.array([[v], [v * A120**2], [v * A120]]), F_NOM)
+            net.add(grid, net.gnd, n_grid)
+            self.v_grid0 = v_grid
+        self.sim = net.start("dvpp_der_emt", h)
+        self.converter.bind()
+        self.v_pcc = n_pcc.attr("v")
+        self.t_solve = self.h
+
+    @property
+    def last(self):
+        return self.converter.last
+
+    @last.setter
+    def last(self, v_conv):
+        self.converter.last = v_conv
+
+    def measure(self):
+        return self.converter.measure()
+
     def pcc(self):
         """The PCC voltage's space vector (pu) at the latest solution, in the stationary frame."""
         return complex(SPACE_VECTOR @ self.v_pcc.get()[:, 0]) / V_R
 
     def apply(self, v_conv):
-        """The converter's phase voltages (pu of v_r, as the FMU meant them held over the next
-        step) into the source for DPsim's next solution (see the module's docstring)."""
-        v_conv = np.asarray(v_conv)
-        x = 0.5 * (self.last + v_conv) if self.timing == "mid" else v_conv
-        self.last = v_conv
-        self.v_ref.set((V_R * x).reshape(3, 1))
+        self.converter.apply(v_conv, self.timing)
 
     def next(self):
         """One DPsim step; returns the time of its solution."""
@@ -218,15 +267,15 @@ class Circuit:
 
     def stop(self):
         self.sim.stop()
-        self._tmp.cleanup()
+        self.net.cleanup()
 
 
 class DerEmt(Slave):
     """The dvpp_der_emt FMU, its inputs set to the circuit's state at t = 0 before
     initialization (it initializes from them as a sinusoidal steady state)."""
 
-    def __init__(self, params, measured, name="der_emt"):
-        super().__init__(der_emt_path(), name, {**params, **dict(zip(INPUTS, measured))})
+    def __init__(self, params, measured, name="der_emt", path=None):
+        super().__init__(path or der_emt_path(), name, {**params, **dict(zip(INPUTS, measured))})
         self.vr_in = [self.vr(n) for n in INPUTS]
         self.vr_out = [self.vr(n) for n in OUTPUTS]
         self.vr_flags = [self.vr(n) for n in FLAGS]

@@ -24,6 +24,28 @@ pub fn nrmse(y: &[f64], r: &[f64]) -> f64 {
     (sq / n as f64).sqrt() / peak(r)
 }
 
+/// [`nrmse`] over the samples `[from, to)` only, still normalized by `max|r|` over the whole of
+/// `r`: the error of a window (such as the transient after an event) on the same scale as the
+/// whole run's.
+pub fn nrmse_window(y: &[f64], r: &[f64], from: usize, to: usize) -> f64 {
+    let to = to.min(y.len()).min(r.len());
+    if from >= to {
+        return f64::NAN;
+    }
+    let sq: f64 = y[from..to]
+        .iter()
+        .zip(&r[from..to])
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum();
+    (sq / (to - from) as f64).sqrt() / peak(r)
+}
+
+/// The samples of `time` in `[t0, t0 + window)`, as a range of indices.
+pub fn window(time: &[f64], t0: f64, window: f64) -> std::ops::Range<usize> {
+    let at = |t: f64| time.partition_point(|&x| x < t - 1e-9);
+    at(t0)..at(t0 + window)
+}
+
 /// Largest `|a - b|` from sample `from` on, relative to `max|b|` over the whole of `b`.
 pub fn max_gap(a: &[f64], b: &[f64], from: usize) -> f64 {
     max_gap_at(a, b, from).0
@@ -87,6 +109,8 @@ pub struct DerSignals {
     pub mu_p: Option<Vec<f64>>,
     pub mu_q: Vec<f64>,
     pub v_dc: Vec<f64>,
+    /// The unit's own frequency deviation `df` (pu of f_nom), when the results record it.
+    pub df: Option<Vec<f64>>,
 }
 
 impl Signals {
@@ -102,6 +126,7 @@ impl Signals {
                 mu_p: t.column(&format!("operator.der[{slot}].mu_p")),
                 mu_q: col(t, &format!("operator.der[{slot}].mu_q"))?,
                 v_dc: col(t, &format!("{name}.v_dc"))?,
+                df: t.column(&format!("{name}.df")),
                 name,
             });
         }
@@ -132,6 +157,86 @@ impl Signals {
                 .collect(),
         }
     }
+}
+
+impl Signals {
+    /// The matching over the transient: NRMSE of `Δf_pcc` and `Δv_pcc` against their desired
+    /// responses over `[t0, t0 + window)`, normalized by the desired peaks over the whole run
+    /// (as [`Metrics`]), so that the two figures compare with the whole run's.
+    pub fn transient(&self, t0: f64, window: f64) -> Transient {
+        let w = self::window(&self.time, t0, window);
+        Transient {
+            window,
+            f_nrmse: nrmse_window(&self.df, &self.df_ref, w.start, w.end),
+            v_nrmse: nrmse_window(&self.dv, &self.dv_ref, w.start, w.end),
+        }
+    }
+
+    /// Each unit's frequency against the PCC's (the paper's coherency `Δf_i ≈ Δf_pcc`), for the
+    /// units whose `df` the results record. The PCC frequency is a meter's (`pcc.f`, the rate of
+    /// change of the PCC angle through `s/(t_f s + 1)`), so each unit's `df` is compared as it
+    /// is and through the same meter (`1/(t_f s + 1)` on the frequency, exact for a sample-and-
+    /// hold at the recorded points).
+    pub fn coherency(&self, t_f: f64) -> Vec<Coherency> {
+        let h = match self.time.as_slice() {
+            [a, b, ..] => b - a,
+            _ => return Vec::new(),
+        };
+        let a = (-h / t_f).exp();
+        let compare = |df: &[f64]| {
+            let gap = df
+                .iter()
+                .zip(&self.df)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0_f64, f64::max);
+            (gap * F_NOM_HZ, nrmse(df, &self.df))
+        };
+        self.der
+            .iter()
+            .filter_map(|d| {
+                let df = d.df.as_ref()?;
+                let mut y = df.first().copied().unwrap_or(0.0);
+                let metered: Vec<f64> = df
+                    .iter()
+                    .map(|x| {
+                        y = a * y + (1.0 - a) * x;
+                        y
+                    })
+                    .collect();
+                let (max_gap_hz, nrmse) = compare(df);
+                let (metered_max_gap_hz, metered_nrmse) = compare(&metered);
+                Some(Coherency {
+                    name: d.name.clone(),
+                    max_gap_hz,
+                    nrmse,
+                    metered_max_gap_hz,
+                    metered_nrmse,
+                })
+            })
+            .collect()
+    }
+}
+
+/// The matching over a window after the event ([`Signals::transient`]).
+#[derive(Debug, Clone)]
+pub struct Transient {
+    /// Length of the window, s.
+    pub window: f64,
+    pub f_nrmse: f64,
+    pub v_nrmse: f64,
+}
+
+/// One unit's frequency against the PCC's ([`Signals::coherency`]).
+#[derive(Debug, Clone)]
+pub struct Coherency {
+    pub name: String,
+    /// Largest `|Δf_i − Δf_pcc|`, Hz, and the NRMSE of `Δf_i` against `Δf_pcc` relative to the
+    /// PCC's peak deviation: the unit's frequency as it imposes it.
+    pub max_gap_hz: f64,
+    pub nrmse: f64,
+    /// The same with `Δf_i` through the PCC's meter.
+    pub metered_max_gap_hz: f64,
+    pub metered_nrmse: f64,
 }
 
 /// Matching metrics of one run.
@@ -255,6 +360,18 @@ mod tests {
         let expected = ((0.01 + 0.01) / 4.0_f64).sqrt() / 2.0;
         assert!((nrmse(&y, &r) - expected).abs() < 1e-15);
         assert_eq!(nrmse(&r, &r), 0.0);
+    }
+
+    #[test]
+    fn a_window_keeps_the_whole_runs_peak() {
+        let time = [0.0, 1.0, 2.0, 3.0];
+        let r = [0.0, -1.0, -2.0, -1.0];
+        let y = [0.0, -1.1, -2.0, -0.9];
+        assert_eq!(window(&time, 1.0, 2.0), 1..3);
+        // Samples 1 and 2: errors 0.1 and 0, over the whole run's peak 2.
+        let expected = (0.01 / 2.0_f64).sqrt() / 2.0;
+        assert!((nrmse_window(&y, &r, 1, 3) - expected).abs() < 1e-15);
+        assert!(nrmse_window(&y, &r, 3, 3).is_nan());
     }
 
     #[test]

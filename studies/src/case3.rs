@@ -11,7 +11,7 @@ use der_model::ports;
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::Table;
-use dvpp_report::casestudy::nrmse;
+use dvpp_report::casestudy::{nrmse, nrmse_window, window};
 use dvpp_report::plot::{Figure, Panel, Style};
 use grid_model::ports as grid_ports;
 use std::path::Path;
@@ -20,7 +20,7 @@ use std::sync::Mutex;
 use crate::sweep::{save_figure, set_start, Rng};
 
 /// The scenarios at R/X = 1: (name, disturbance, control).
-const NOMINAL: [(&str, &str, &str); 4] = [
+pub const NOMINAL: [(&str, &str, &str); 4] = [
     ("case3_ext_pf", "external", "p-f"),
     ("case3_ext_rot", "external", "rotational"),
     ("case3_int_pf", "internal", "p-f"),
@@ -28,30 +28,36 @@ const NOMINAL: [(&str, &str, &str); 4] = [
 ];
 
 /// The Monte Carlo's scenarios (rotational control, both disturbances).
-const DRAWN: [&str; 2] = ["case3_ext_rot", "case3_int_rot"];
+pub const DRAWN: [&str; 2] = ["case3_ext_rot", "case3_int_rot"];
 
 const F_NOM_HZ: f64 = 50.0;
 
+/// Time of the disturbance, s, and the transient window after it the table reports, s.
+pub const T_EVENT: f64 = 1.0;
+pub const TRANSIENT: f64 = 5.0;
+
 /// One run's measurements.
 #[derive(Clone, Default)]
-struct Run {
-    scenario: String,
+pub struct Run {
+    pub scenario: String,
     /// 0: the nominal R/X = 1; k > 0: draw k.
-    draw: usize,
+    pub draw: usize,
     /// Per line, the drawn R/X (empty for the nominal run).
-    rx: Vec<f64>,
-    /// Per POC: frequency NRMSE against the operator's desired response.
-    nrmse: Vec<f64>,
+    pub rx: Vec<f64>,
+    /// Per POC: frequency NRMSE against the operator's desired response over the run, and over
+    /// the first [`TRANSIENT`] s after the step (normalized by the whole run's peak).
+    pub nrmse: Vec<f64>,
+    pub nrmse_transient: Vec<f64>,
     /// At the end of the run: Σ Δp of the units and Σ Δp of the POCs, MW.
-    dp_units_mw: f64,
-    dp_pocs_mw: f64,
+    pub dp_units_mw: f64,
+    pub dp_pocs_mw: f64,
     /// t, then per POC its Δf (Hz), then the desired Δf (Hz).
     series: Vec<Vec<f64>>,
     /// The scenario's DER units, in slot order.
     expected: Vec<String>,
     /// Per unit: name, Δp, Δq, Δp' (MW, Mvar).
     units: Vec<(String, [Vec<f64>; 3])>,
-    error: Option<String>,
+    pub error: Option<String>,
 }
 
 fn column(t: &Table, name: &str) -> Result<Vec<f64>, String> {
@@ -70,9 +76,12 @@ fn measure(run: &mut Run, t: &Table) -> Result<(), String> {
     let mut series = vec![time.clone()];
     let mut dp_pocs = 0.0;
     let mut k = 1;
+    let w = window(&time, T_EVENT, TRANSIENT);
     while let Some(f) = t.column(&format!("grid.poc[{k}].f")) {
         let df: Vec<f64> = f.iter().map(|x| x - 1.0).collect();
         run.nrmse.push(nrmse(&df, &df_ref));
+        run.nrmse_transient
+            .push(nrmse_window(&df, &df_ref, w.start, w.end));
         series.push(df.iter().map(|x| x * F_NOM_HZ).collect());
         let p = column(t, &format!("grid.poc[{k}].p"))?;
         dp_pocs += (p[p.len() - 1] - p[0]) * 100.0;
@@ -186,42 +195,63 @@ fn pct(x: &[f64]) -> String {
         .join(" / ")
 }
 
+/// A scenario's R/X Monte Carlo: the number of completed draws, and per POC the median and the
+/// largest frequency NRMSE over them.
+#[derive(Debug, Clone, Copy)]
+pub struct MonteCarlo {
+    pub draws: usize,
+    pub median: [f64; 2],
+    pub worst: [f64; 2],
+}
+
+/// The Monte Carlo of `scenario` among `runs` (None: no completed draw).
+pub fn monte_carlo(runs: &[Run], scenario: &str) -> Option<MonteCarlo> {
+    let drawn: Vec<&Run> = runs
+        .iter()
+        .filter(|r| r.scenario == scenario && r.draw > 0 && r.error.is_none())
+        .collect();
+    if drawn.is_empty() {
+        return None;
+    }
+    let per = |k: usize| -> Vec<f64> {
+        drawn
+            .iter()
+            .filter_map(|r| r.nrmse.get(k).copied())
+            .collect()
+    };
+    let (a, b) = (per(0), per(1));
+    let worst = |x: &[f64]| x.iter().cloned().fold(0.0, f64::max);
+    Some(MonteCarlo {
+        draws: drawn.len(),
+        median: [median(a.clone()), median(b.clone())],
+        worst: [worst(&a), worst(&b)],
+    })
+}
+
 /// The nominal table and the Monte Carlo summary, as Markdown.
 fn table(runs: &[Run]) -> String {
-    let mut out = String::from(
-        "| scenario | disturbance | control | f NRMSE at POC 1 / POC 2 | Σ Δp of the units | Σ Δp at the POCs | R/X Monte Carlo: median / worst NRMSE (POC 1, POC 2) |\n|---|---|---|---|---|---|---|\n",
+    let mut out = format!(
+        "| scenario | disturbance | control | f NRMSE at POC 1 / POC 2: run | first {TRANSIENT} s | Σ Δp of the units | Σ Δp at the POCs | R/X Monte Carlo: median / worst NRMSE (POC 1, POC 2) |\n|---|---|---|---|---|---|---|---|\n",
     );
     for (name, dist, control) in NOMINAL {
         let Some(r) = runs.iter().find(|r| r.scenario == name && r.draw == 0) else {
             continue;
         };
-        let drawn: Vec<&Run> = runs
-            .iter()
-            .filter(|r| r.scenario == name && r.draw > 0 && r.error.is_none())
-            .collect();
-        let mc = if drawn.is_empty() {
-            "—".to_string()
-        } else {
-            let per = |k: usize| -> Vec<f64> {
-                drawn
-                    .iter()
-                    .filter_map(|r| r.nrmse.get(k).copied())
-                    .collect()
-            };
-            let (a, b) = (per(0), per(1));
-            let worst = |x: &[f64]| x.iter().cloned().fold(0.0, f64::max);
-            format!(
+        let mc = match monte_carlo(runs, name) {
+            None => "—".to_string(),
+            Some(m) => format!(
                 "{} runs: {:.2} / {:.2} %, {:.2} / {:.2} %",
-                drawn.len(),
-                median(a.clone()) * 100.0,
-                worst(&a) * 100.0,
-                median(b.clone()) * 100.0,
-                worst(&b) * 100.0
-            )
+                m.draws,
+                m.median[0] * 100.0,
+                m.worst[0] * 100.0,
+                m.median[1] * 100.0,
+                m.worst[1] * 100.0
+            ),
         };
         out += &format!(
-            "| `{name}` | {dist} | {control} | {} | {:+.2} MW | {:+.2} MW | {mc} |\n",
+            "| `{name}` | {dist} | {control} | {} | {} | {:+.2} MW | {:+.2} MW | {mc} |\n",
             pct(&r.nrmse),
+            pct(&r.nrmse_transient),
             r.dp_units_mw,
             r.dp_pocs_mw,
         );
@@ -353,26 +383,9 @@ fn write_csv(path: &Path, runs: &[Run]) -> Result<(), String> {
     std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
 }
 
-/// `cargo xtask case3 [--draws N] [--seed S]` (default 24 draws, seed 1).
-/// The documented Monte Carlo: draws per rotational scenario and seed (the table in docs/case-studies.md).
-const DRAWS: usize = 24;
-const SEED: u64 = 1;
-
-pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
-    let (mut draws, mut seed) = (DRAWS, SEED);
-    let mut it = args.iter();
-    while let Some(a) = it.next() {
-        let mut value = |name: &str| {
-            it.next()
-                .and_then(|v| v.parse::<u64>().ok())
-                .ok_or(format!("case3: {name} needs a whole number"))
-        };
-        match a.as_str() {
-            "--draws" => draws = value("--draws")? as usize,
-            "--seed" => seed = value("--seed")?,
-            other => return Err(format!("case3: unknown argument '{other}'")),
-        }
-    }
+/// Run the four scenarios bundled in `root/dist/` at R/X = 1 and `draws` R/X draws (from
+/// `seed`) of each of [`DRAWN`], on all cores; the runs in order, failed ones with their error.
+pub fn study(root: &Path, draws: usize, seed: u64) -> Result<Vec<Run>, String> {
     let dist = root.join("dist");
     // The packages read (each unpacked once) live until every run is done: the runs' systems
     // refer to their unpacked FMUs.
@@ -432,9 +445,35 @@ pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
         "case3: {} runs (4 scenarios at R/X = 1, {draws} R/X draws each for {DRAWN:?}, seed {seed})",
         jobs.len()
     );
-    let started = std::time::Instant::now();
     let runs = run_all(jobs);
     drop(bases);
+    Ok(runs)
+}
+
+/// The documented Monte Carlo: draws per rotational scenario and seed (the table in
+/// docs/case-studies.md; `tests/tests/case3.rs` reruns it).
+pub const DRAWS: usize = 24;
+pub const SEED: u64 = 1;
+
+/// `cargo xtask case3 [--draws N] [--seed S]` (default [`DRAWS`] draws, seed [`SEED`]; with both
+/// the defaults it rewrites the table of docs/case-studies.md).
+pub fn case3(root: &Path, args: &[String]) -> Result<(), String> {
+    let (mut draws, mut seed) = (DRAWS, SEED);
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        let mut value = |name: &str| {
+            it.next()
+                .and_then(|v| v.parse::<u64>().ok())
+                .ok_or(format!("case3: {name} needs a whole number"))
+        };
+        match a.as_str() {
+            "--draws" => draws = value("--draws")? as usize,
+            "--seed" => seed = value("--seed")?,
+            other => return Err(format!("case3: unknown argument '{other}'")),
+        }
+    }
+    let started = std::time::Instant::now();
+    let runs = study(root, draws, seed)?;
     let wall = started.elapsed().as_secs_f64();
     let results = root.join("results");
     std::fs::create_dir_all(&results).map_err(|e| e.to_string())?;

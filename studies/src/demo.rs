@@ -5,7 +5,109 @@
 use std::path::Path;
 
 /// The case study I runs of the demo and their labels.
-const DEMO_RUNS: [(&str, &str); 2] = [("case1_load", "load step"), ("case1_cloud", "cloud")];
+pub const DEMO_RUNS: [(&str, &str); 2] = [("case1_load", "load step"), ("case1_cloud", "cloud")];
+
+/// Time of case study I's event (the load step, the cloud), s.
+pub const T_EVENT: f64 = 1.0;
+/// The transient windows after the event the table reports beside the whole run, s.
+pub const WINDOWS: [f64; 2] = [5.0, 1.0];
+
+/// Case study I's tables (matching over the run and the transient, coherency of the units with
+/// the PCC through its meter of time constant `t_f`, the cloud against the load step) for the
+/// runs `(name, signals)`, the load step first, as Markdown.
+pub fn case1_table(runs: &[(&str, &dvpp_report::casestudy::Signals)], t_f: f64) -> String {
+    use dvpp_report::casestudy;
+    let pct = |x: f64| format!("{:.2} %", x * 100.0);
+    let mut table = format!(
+        "| scenario | NRMSE Δf_pcc vs ref.df: run / first {} s / first {} s | NRMSE Δv_pcc vs ref.dv: run / first {} s / first {} s | nadir (desired) | max abs(v_dc − 1) |\n|---|---|---|---|---|\n",
+        WINDOWS[0], WINDOWS[1], WINDOWS[0], WINDOWS[1]
+    );
+    let mut coherency = String::from(
+        "| scenario | unit | NRMSE of Δf_i vs Δf_pcc: through the PCC's meter / as imposed | largest abs(Δf_i − Δf_pcc): through the meter / as imposed |\n|---|---|---|---|\n",
+    );
+    for (name, s) in runs {
+        let m = s.metrics();
+        let [a, b] = WINDOWS.map(|w| s.transient(T_EVENT, w));
+        // Both against the operator's ref.df, which takes Δp_pcc against the DVPP's summed set
+        // point: the cloud's lowered PV set point is its disturbance.
+        let dc: Vec<String> = m
+            .v_dc
+            .iter()
+            .map(|(d, x)| format!("{d} {:.2} %", x * 100.0))
+            .collect();
+        table.push_str(&format!(
+            "| `{name}` | {} / {} / {} | {} / {} / {} | {:.4} Hz ({:.4} Hz) | {} |\n",
+            pct(m.f_nrmse),
+            pct(a.f_nrmse),
+            pct(b.f_nrmse),
+            pct(m.v_nrmse),
+            pct(a.v_nrmse),
+            pct(b.v_nrmse),
+            m.f_nadir_hz,
+            m.f_ref_nadir_hz,
+            dc.join(", ")
+        ));
+        for c in s.coherency(t_f) {
+            coherency.push_str(&format!(
+                "| `{name}` | {} | {} / {} | {:.1} mHz / {:.1} mHz |\n",
+                c.name,
+                pct(c.metered_nrmse),
+                pct(c.nrmse),
+                c.metered_max_gap_hz * 1e3,
+                c.max_gap_hz * 1e3,
+            ));
+        }
+    }
+    table.push_str(&format!(
+        "\nNRMSE: the RMS error over the run or over the window after the event at t = 1 s, \
+         always relative to the desired response's peak over the whole run.\n\n\
+         Coherency: each unit's own frequency `df` against the PCC frequency `pcc.f` (the \
+         PCC angle's rate of change through the scenario's meter, `pcc_f_filter_t` = {t_f} s), \
+         through the same meter and as the unit imposes it; NRMSE relative to the PCC's peak \
+         deviation.\n\n"
+    ));
+    table.push_str(&coherency);
+    if let [(_, load), (_, cloud), ..] = runs {
+        let (gap, worst) = casestudy::max_gap_at(&cloud.df, &load.df, 0);
+        let settled = load.time.iter().position(|&t| t >= 1.02).unwrap_or(0);
+        let gap_after = casestudy::max_gap(&cloud.df, &load.df, settled);
+        let worst = load.time.get(worst).copied().unwrap_or(0.0);
+        let gains: Vec<String> = cloud
+            .der
+            .iter()
+            .flat_map(|d| {
+                let mut g = Vec::new();
+                if let Some(m) = &d.mu_p {
+                    g.push(format!(
+                        "{} μ_p {:.2} → {:.2}",
+                        d.name,
+                        m[0],
+                        m[m.len() - 1]
+                    ));
+                }
+                let m = &d.mu_q;
+                g.push(format!(
+                    "{} μ_q {:.2} → {:.2}",
+                    d.name,
+                    m[0],
+                    m[m.len() - 1]
+                ));
+                g
+            })
+            .collect();
+        table.push_str(&format!(
+            "\nThe cloud's dc gains, at the start → at the end: {}.\n",
+            gains.join(", ")
+        ));
+        table.push_str(&format!(
+            "\nCloud vs load step, largest gap of Δf_pcc relative to the load step's peak deviation: \
+             {:.2} % over the whole run (at t = {worst:.4} s), {:.2} % from t = 1.02 s on.\n",
+            gap * 100.0,
+            gap_after * 100.0
+        ));
+    }
+    table
+}
 
 /// Run the demo in the workspace `root` (the FMUs and scenarios bundled in `dist/`).
 pub fn demo(root: &Path) -> Result<(), String> {
@@ -55,7 +157,6 @@ pub fn demo(root: &Path) -> Result<(), String> {
         signals.push(Signals::of(&recorder.inner.table).map_err(|e| format!("{name}: {e}"))?);
     }
     let (load, cloud) = (&signals[0], &signals[1]);
-    let (gap, worst) = casestudy::max_gap_at(&cloud.df, &load.df, 0);
     let figures = root.join("tests").join("figures");
     std::fs::create_dir_all(&figures).map_err(|e| e.to_string())?;
     let save = |fig: dvpp_report::plot::Figure, file: &str| -> Result<(), String> {
@@ -102,37 +203,15 @@ pub fn demo(root: &Path) -> Result<(), String> {
         "case1_adpf.svg",
     )?;
 
-    let mut table = String::from(
-        "| scenario | NRMSE Δf_pcc vs ref.df | NRMSE Δv_pcc vs ref.dv | nadir (desired) | max abs(v_dc − 1) |\n|---|---|---|---|---|\n",
-    );
-    let desired_nadir = load.metrics().f_ref_nadir_hz;
-    for ((name, _), s) in DEMO_RUNS.iter().zip(&signals) {
-        let m = s.metrics();
-        // Both against the operator's ref.df, which takes Δp_pcc against the DVPP's summed set
-        // point: the cloud's lowered PV set point is its disturbance.
-        let f = format!("{:.2} %", m.f_nrmse * 100.0);
-        let dc: Vec<String> = m
-            .v_dc
-            .iter()
-            .map(|(d, x)| format!("{d} {:.2} %", x * 100.0))
-            .collect();
-        table.push_str(&format!(
-            "| `{name}` | {f} | {:.2} % | {:.4} Hz ({:.4} Hz) | {} |\n",
-            m.v_nrmse * 100.0,
-            m.f_nadir_hz,
-            desired_nadir,
-            dc.join(", ")
-        ));
-    }
-    let settled = load.time.iter().position(|&t| t >= 1.02).unwrap_or(0);
-    let gap_after = casestudy::max_gap(&cloud.df, &load.df, settled);
-    let worst = load.time.get(worst).copied().unwrap_or(0.0);
-    table.push_str(&format!(
-        "\nCloud vs load step, largest gap of Δf_pcc relative to the load step's peak deviation: \
-         {:.2} % over the whole run (at t = {worst:.4} s), {:.2} % from t = 1.02 s on.\n",
-        gap * 100.0,
-        gap_after * 100.0
-    ));
+    // The PCC's frequency meter, for the units' coherency with it (the same in both scenarios).
+    let scenario = |name: &str| {
+        root.join("studies")
+            .join("scenarios")
+            .join(format!("{name}.toml"))
+    };
+    let t_f = crate::scenario::pcc_f_filter_t(&scenario(DEMO_RUNS[0].0))?
+        .ok_or("case1_load sets no [grid] pcc_f_filter_t")?;
+    let table = case1_table(&[(DEMO_RUNS[0].0, load), (DEMO_RUNS[1].0, cloud)], t_f);
     print!("{table}");
     crate::docs::update_between(
         root,

@@ -2,7 +2,8 @@
 
 use std::path::Path;
 
-/// The page holding the case-study tables that the demo and case study III write.
+/// The page holding the case-study tables that the demo, the sweep, the outage and case study
+/// III write.
 pub const CASE_STUDIES: &str = "docs/case-studies.md";
 
 /// `page` with the text between the markers `begin` and `end` replaced by `body`; `name` is the
@@ -49,13 +50,15 @@ mod tests {
             .to_path_buf()
     }
 
-    /// The markers `cargo xtask demo` and `cargo xtask case3` write between are on the page
-    /// they write to, once each, in order.
+    /// The markers `cargo xtask demo`, `sweep`, `outage` and `case3` write between are on the
+    /// page they write to, once each, in order.
     #[test]
     fn case_study_page_has_the_generated_tables() {
         let page = std::fs::read_to_string(root().join(super::CASE_STUDIES)).unwrap();
         for (begin, end) in [
             ("<!-- metrics:begin -->", "<!-- metrics:end -->"),
+            ("<!-- case2:begin -->", "<!-- case2:end -->"),
+            ("<!-- outage:begin -->", "<!-- outage:end -->"),
             ("<!-- case3:begin -->", "<!-- case3:end -->"),
         ] {
             assert_eq!(page.matches(begin).count(), 1, "{begin}");

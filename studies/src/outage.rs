@@ -80,8 +80,8 @@ fn column(t: &Table, name: &str) -> Result<Vec<f64>, String> {
     t.column(name).ok_or(format!("no column {name}"))
 }
 
-/// The verdict of one completed run.
-fn judge(eps: u32, t: &Table, expected: &[String]) -> Result<Verdict, String> {
+/// The verdict of one completed run of `case2_outage_eps{eps}` whose DER units are `expected`.
+pub fn judge(eps: u32, t: &Table, expected: &[String]) -> Result<Verdict, String> {
     let time = column(t, "time")?;
     let after = time.partition_point(|&x| x < T_TRIP);
     let f = column(t, "grid.pcc.f")?;
@@ -327,7 +327,16 @@ pub fn outage(root: &Path) -> Result<Vec<Verdict>, String> {
     let path = results.join("case2_outage.csv");
     std::fs::write(&path, csv).map_err(|e| format!("{}: {e}", path.display()))?;
     crate::sweep::save_figure(root, &figure(&verdicts), "case2_outage.svg")?;
-    println!("{}", table(&verdicts));
+    let table = table(&verdicts);
+    println!("{table}");
+    crate::docs::update_between(
+        root,
+        crate::docs::CASE_STUDIES,
+        "<!-- outage:begin -->",
+        "<!-- outage:end -->",
+        &table,
+    )?;
+    println!("outage: updated the table in {}", crate::docs::CASE_STUDIES);
     println!(
         "outage: {} and tests/figures/case2_outage.svg",
         path.display()

@@ -1,12 +1,97 @@
 //! Case study I end to end in our master: the bundled `case1_load` and `case1_cloud` systems match
-//! `T_des` (NRMSE of Δf_pcc and Δv_pcc), the cloud leaves Δf_pcc nearly unaffected while active
-//! participation moves from the PV to the wind, and the dc links stay within their limits except
-//! where the PV's primary source runs out of reserve.
+//! `T_des` (NRMSE of Δf_pcc and Δv_pcc over the run and over the first 5 s and 1 s after the
+//! event), the units' frequencies are coherent with the PCC's, the cloud leaves Δf_pcc nearly
+//! unaffected while active participation moves from the PV to the wind, and the dc links stay
+//! within their limits except where the PV's primary source runs out of reserve. The bounds are
+//! the figures `cargo xtask demo` writes into docs/case-studies.md with a margin; the measured
+//! value stands beside each.
 
 use der_model::ports;
 use dvpp_cosim::master::{self, Options};
 use dvpp_e2e::{der_units, scenario, units_with};
 use dvpp_report::casestudy::{max_gap, peak, Signals};
+use dvpp_studies::demo::{T_EVENT, WINDOWS};
+
+/// The PCC frequency meter's time constant the scenario sets, s.
+fn meter(name: &str) -> f64 {
+    let path = dvpp_e2e::root()
+        .join("studies/scenarios")
+        .join(format!("{name}.toml"));
+    dvpp_studies::scenario::pcc_f_filter_t(&path)
+        .unwrap_or_else(|e| panic!("{e}"))
+        .unwrap_or_else(|| panic!("{name} sets no pcc_f_filter_t"))
+}
+
+/// What docs/case-studies.md prints for one scenario, and the bounds the test holds it to.
+struct Bounds {
+    /// NRMSE of Δf_pcc over the run, the first 5 s, the first 1 s; the same of Δv_pcc.
+    f: [f64; 3],
+    v: [f64; 3],
+    /// Per unit (wind, pv, bess): NRMSE of its frequency through the PCC's meter against the
+    /// PCC's, and the largest gap through the meter, Hz.
+    coherency: [(f64, f64); 3],
+    /// Per unit: the largest |v_dc − 1|.
+    v_dc: [f64; 3],
+}
+
+/// Check `s`'s figures against `b`.
+fn check(name: &str, s: &Signals, b: &Bounds) {
+    let m = s.metrics();
+    let [w5, w1] = WINDOWS.map(|w| s.transient(T_EVENT, w));
+    let f = [m.f_nrmse, w5.f_nrmse, w1.f_nrmse];
+    let v = [m.v_nrmse, w5.v_nrmse, w1.v_nrmse];
+    println!(
+        "{name}: NRMSE f {:.2} / {:.2} / {:.2} %, v {:.2} / {:.2} / {:.2} % (run / first 5 s / first 1 s)",
+        f[0] * 100.0,
+        f[1] * 100.0,
+        f[2] * 100.0,
+        v[0] * 100.0,
+        v[1] * 100.0,
+        v[2] * 100.0
+    );
+    for (what, x, bound) in [("frequency", f, b.f), ("voltage", v, b.v)] {
+        for k in 0..3 {
+            assert!(
+                x[k] <= bound[k],
+                "{name}: {what} NRMSE {:.2} % > {:.2} % ({})",
+                x[k] * 100.0,
+                bound[k] * 100.0,
+                ["run", "first 5 s", "first 1 s"][k]
+            );
+        }
+    }
+    let coherency = s.coherency(meter(name));
+    let units: Vec<&str> = coherency.iter().map(|c| c.name.as_str()).collect();
+    assert_eq!(
+        units,
+        ["wind", "pv", "bess"],
+        "{name}: every unit's df recorded"
+    );
+    for (c, &(nrmse, gap)) in coherency.iter().zip(&b.coherency) {
+        println!(
+            "{name} {}: coherency NRMSE {:.2} % (as imposed {:.2} %), largest gap {:.1} mHz (as imposed {:.1} mHz)",
+            c.name,
+            c.metered_nrmse * 100.0,
+            c.nrmse * 100.0,
+            c.metered_max_gap_hz * 1e3,
+            c.max_gap_hz * 1e3
+        );
+        assert!(
+            c.metered_nrmse <= nrmse && c.metered_max_gap_hz <= gap,
+            "{name} {}: frequency through the PCC's meter {:.2} % NRMSE, {:.1} mHz from the PCC's",
+            c.name,
+            c.metered_nrmse * 100.0,
+            c.metered_max_gap_hz * 1e3
+        );
+    }
+    for ((unit, dev), bound) in m.v_dc.iter().zip(b.v_dc) {
+        assert!(
+            *dev <= bound,
+            "{name}: {unit} dc link deviates {:.2} %",
+            dev * 100.0
+        );
+    }
+}
 
 fn run(name: &str) -> (Signals, dvpp_cosim::Table) {
     let table = master::System::builder(&scenario(name))
@@ -29,61 +114,53 @@ fn column(t: &dvpp_cosim::Table, name: &str) -> Vec<f64> {
 fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffected() {
     let (load, _) = run("case1_load");
     let (cloud, cloud_t) = run("case1_cloud");
-    let m = load.metrics();
-    println!(
-        "case1_load: NRMSE f {:.2} %, v {:.2} %",
-        m.f_nrmse * 100.0,
-        m.v_nrmse * 100.0
+    check(
+        "case1_load",
+        &load,
+        &Bounds {
+            // measured: 2.61 / 5.20 / 10.32 %
+            f: [0.03, 0.06, 0.12],
+            // measured: 9.18 / 18.37 / 40.98 %
+            v: [0.10, 0.20, 0.45],
+            // measured: 0.28 % 19.4 mHz, 0.27 % 19.4 mHz, 0.93 % 41.1 mHz
+            coherency: [(0.005, 0.025), (0.005, 0.025), (0.012, 0.05)],
+            // measured: 0.29, 0.54, 1.86 %; within ±5 %
+            v_dc: [0.05; 3],
+        },
     );
-    assert!(
-        m.f_nrmse <= 0.05,
-        "frequency NRMSE {:.2} %",
-        m.f_nrmse * 100.0
-    );
-    assert!(
-        m.v_nrmse <= 0.10,
-        "voltage NRMSE {:.2} %",
-        m.v_nrmse * 100.0
-    );
-    // The load step's dc links stay within ±5 %.
-    for (name, dev) in &m.v_dc {
-        assert!(
-            *dev <= 0.05,
-            "case1_load: {name} dc link deviates {:.2} %",
-            dev * 100.0
-        );
-    }
-
     // The cloud against its own desired response: the operator takes Δp_pcc against the
     // DVPP's summed set point, so the PV's lowered set point is the disturbance.
-    let c = cloud.metrics();
-    println!(
-        "case1_cloud: NRMSE f {:.2} %, v {:.2} %",
-        c.f_nrmse * 100.0,
-        c.v_nrmse * 100.0
-    );
-    assert!(
-        c.f_nrmse <= 0.05,
-        "case1_cloud: frequency NRMSE {:.2} %",
-        c.f_nrmse * 100.0
-    );
-    assert!(
-        c.v_nrmse <= 0.10,
-        "case1_cloud: voltage NRMSE {:.2} %",
-        c.v_nrmse * 100.0
+    check(
+        "case1_cloud",
+        &cloud,
+        &Bounds {
+            // measured: 2.65 / 5.29 / 10.53 %
+            f: [0.03, 0.06, 0.12],
+            // measured: 3.35 / 6.70 / 14.76 %
+            v: [0.04, 0.08, 0.17],
+            // measured: 0.26 % 14.5 mHz, 1.09 % 66.1 mHz, 0.92 % 42.1 mHz
+            coherency: [(0.005, 0.02), (0.013, 0.08), (0.012, 0.05)],
+            // measured: wind 0.46 %, PV 7.54 % (its source at P_avail, below), BESS 1.88 %
+            v_dc: [0.05, 0.085, 0.05],
+        },
     );
 
     // The cloud against the load step, at every instant of the run.
     assert_eq!(load.time.len(), cloud.time.len());
     let gap = max_gap(&cloud.df, &load.df, 0);
+    let settled = load.time.partition_point(|&t| t < 1.02);
+    let gap_after = max_gap(&cloud.df, &load.df, settled);
     println!(
-        "cloud vs load step: largest Δf_pcc gap {:.2} % of the peak",
-        gap * 100.0
+        "cloud vs load step: largest Δf_pcc gap {:.2} % of the peak, {:.2} % from t = 1.02 s on",
+        gap * 100.0,
+        gap_after * 100.0
     );
+    // measured: 7.26 % (at the event), 0.57 % from t = 1.02 s on
     assert!(
-        gap <= 0.10,
-        "cloud vs load step: Δf_pcc gap {:.2} %",
-        gap * 100.0
+        gap <= 0.10 && gap_after <= 0.01,
+        "cloud vs load step: Δf_pcc gap {:.2} %, {:.2} % after 1.02 s",
+        gap * 100.0,
+        gap_after * 100.0
     );
     assert!(
         peak(&load.df) > 1e-3,
@@ -106,6 +183,7 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
     };
     let (wind_p, pv_p, pv_q) = (mu_p("wind"), mu_p("pv"), &der("pv").mu_q);
     let (first, last) = (0, cloud.time.len() - 1);
+    // measured: wind μ_p 0.38 -> 0.57, PV μ_p 0.62 -> 0.43, PV μ_q 0.36 -> 0.44
     assert!(
         wind_p[last] > wind_p[first] + 0.1,
         "wind μ_p {} -> {}",
@@ -119,7 +197,7 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
         pv_p[last]
     );
     assert!(
-        pv_q[last] > pv_q[first],
+        pv_q[last] > pv_q[first] + 0.05,
         "PV μ_q {} -> {}",
         pv_q[first],
         pv_q[last]

@@ -118,6 +118,12 @@ pub fn units(path: &Path) -> Result<Vec<String>, String> {
     Ok(resolved(path)?.der.into_iter().map(|d| d.name).collect())
 }
 
+/// The PCC frequency meter's time constant the scenario at `path` sets (`[grid]
+/// pcc_f_filter_t`, s), if it sets one.
+pub fn pcc_f_filter_t(path: &Path) -> Result<Option<f64>, String> {
+    Ok(resolved(path)?.grid.pcc_f_filter_t)
+}
+
 /// Bundle the scenario at `path` into `out_dir` and write `<name>.ssp` there.
 pub fn bundle(path: &Path, out_dir: &Path, bundle_one: &mut Bundler) -> Result<PathBuf, String> {
     let name = name_of(path)?;

@@ -104,8 +104,9 @@ pub struct Experiment {
 /// What a scenario's result records unless the scenario or the user says otherwise: what the
 /// case-study figures and tables plot and measure (PCC and POC quantities, the units' powers,
 /// currents, dc links and set points, the machines' powers, the operator's gains and desired
-/// response). A pattern may match nothing in a given system.
-pub const RECORD: [&str; 17] = [
+/// response, the units' own frequencies for their coherency with the PCC). A pattern may match
+/// nothing in a given system.
+pub const RECORD: [&str; 18] = [
     "grid.pcc*",
     "grid.energized",
     "*.synchronized",
@@ -122,6 +123,7 @@ pub const RECORD: [&str; 17] = [
     "*.i_limit",
     "*.p_set",
     "*.p_rot",
+    "*.df",
     "operator*",
 ];
 

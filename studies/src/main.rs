@@ -8,14 +8,15 @@ const USAGE: &str = "usage: dvpp-study [--root DIR] <study> [ARGS]
 
 Runs a case study on the systems `cargo xtask bundle` wrote to DIR/dist/ (DIR: the workspace
 root, default the current directory); results go to DIR/results/, figures to DIR/tests/figures/,
-tables to DIR/docs/case-studies.md.
+tables to DIR/docs/case-studies.md (sweep and case3 with their default N and seed).
 
 studies:
   demo                       case study I (case1_load, case1_cloud), then case study III
   case3 [--draws N] [--seed S]
                              case study III and its R/X Monte Carlo (default 24 draws, seed 1)
   sweep [--runs N] [--seed S]
-                             case study II over ε with N (default 40) Monte Carlo load steps
+                             case study II over ε with N (default 20) Monte Carlo load steps
+                             per family (at bus 2, at a random bus; seed 1)
   outage                     case study II's outage of SG1 and SG3, a verdict per ε";
 
 fn main() -> ExitCode {

@@ -92,15 +92,18 @@ tasks:
            without warnings, then the Python (fmpy) tests in target/venv
   sweep [--runs N] [--seed S]
            bundle, then run case study II (case2_load_eps000 ... eps100) on all cores: the 42 MW
-           step per ε and N (default 40) seeded Monte Carlo load steps each; summary in
-           results/case2_sweep.csv, distributions in tests/figures/case2_distributions.svg
+           step per ε and N (default 20) seeded Monte Carlo load steps of U(10, 50) MW per
+           family, at bus 2 (the paper's) and at a random bus; summary in
+           results/case2_sweep.csv, distributions in tests/figures/case2_distributions.svg, the
+           table of docs/case-studies.md (with the default N and seed)
   case3 [--draws N] [--seed S]
            bundle, then run case study III (case3_ext_pf, case3_ext_rot, case3_int_pf,
            case3_int_rot) and N (default 24) seeded random R/X per MV line for each rotational
            scenario, on all cores: results/case3.csv, tests/figures/case3_response.svg and
-           case3_rx_envelope.svg
+           case3_rx_envelope.svg, the table of docs/case-studies.md (with the default N and seed)
   outage   bundle, then run case study II's outage of SG1 and SG3 (case2_outage_eps000 ...
            eps100): a verdict per ε in results/case2_outage.csv, tests/figures/case2_outage.svg
+           and the table of docs/case-studies.md
   fuzz [--cases N] [--seed S] [--jobs J] [--first K]
            bundle the FMUs and case1_load, then run N (default 10000) seeded cases, in turn: a
            variant of case1_load's SSD run by the `cosim` binary, a variant of a shipped

@@ -229,7 +229,7 @@ pub fn monte_carlo(runs: &[Run], scenario: &str) -> Option<MonteCarlo> {
 }
 
 /// The nominal table and the Monte Carlo summary, as Markdown.
-fn table(runs: &[Run]) -> String {
+pub fn table(runs: &[Run]) -> String {
     let mut out = format!(
         "| scenario | disturbance | control | f NRMSE at POC 1 / POC 2: run | first {TRANSIENT} s | Σ Δp of the units | Σ Δp at the POCs | R/X Monte Carlo: median / worst NRMSE (POC 1, POC 2) |\n|---|---|---|---|---|---|---|---|\n",
     );

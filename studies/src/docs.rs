@@ -26,6 +26,37 @@ pub fn replace_between(
     Ok(format!("{}\n{body}{}", &page[..start], &page[stop..]))
 }
 
+/// The text of `page` between the markers `begin` and `end` as [`replace_between`] writes it
+/// (without the line break after `begin`); None when a marker is missing.
+pub fn between<'a>(page: &'a str, begin: &str, end: &str) -> Option<&'a str> {
+    let start = page.find(begin)? + begin.len();
+    let stop = page[start..].find(end)? + start;
+    let body = &page[start..stop];
+    Some(body.strip_prefix('\n').unwrap_or(body))
+}
+
+/// Whether the table between `begin` and `end` on the page `name` (relative to `root`) is
+/// `fresh`, as its command would write it: an error naming `command` when it is stale.
+pub fn check_between(
+    root: &Path,
+    name: &str,
+    begin: &str,
+    end: &str,
+    fresh: &str,
+    command: &str,
+) -> Result<(), String> {
+    let path = root.join(name);
+    let page = std::fs::read_to_string(&path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let written = between(&page, begin, end).ok_or(format!("{name} has no {begin} … {end}"))?;
+    if written == fresh {
+        Ok(())
+    } else {
+        Err(format!(
+            "{name}: the table {begin} is stale (run `{command}`); it reads\n{written}\nand the run gives\n{fresh}"
+        ))
+    }
+}
+
 /// Rewrite the text between the markers `begin` and `end` of the page `name` (a path relative
 /// to `root`, such as [`CASE_STUDIES`]) with `body`.
 pub fn update_between(
@@ -66,6 +97,7 @@ mod tests {
             let body = &page[page.find(begin).unwrap()..page.find(end).unwrap()];
             // Rewriting with the same body leaves the page as it is.
             let inner = body[begin.len()..].strip_prefix('\n').unwrap();
+            assert_eq!(super::between(&page, begin, end), Some(inner));
             let same =
                 super::replace_between(&page, super::CASE_STUDIES, begin, end, inner).unwrap();
             assert!(

@@ -6,7 +6,7 @@
 //! - *bus 2* (the paper's): a load step of U(10, 50) MW at bus 2, the PCC (the scenario's
 //!   event 2, the nominal one);
 //! - *random bus*: a load step of U(10, 50) MW at a bus drawn from {2, 5, 6, 8} (events 2–5).
-//!   The location gives a spread the size alone does not (the model is nearly linear in it).
+//!   The location gives a wider spread than the size alone (per MW of disturbance).
 //!
 //! Random availabilities were tried and left out: they move the operator's dc gains away from
 //! the units' bundled start values, so a run would not start flat. Each Monte Carlo run is 10 s

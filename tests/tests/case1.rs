@@ -158,6 +158,22 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
         },
     );
 
+    // The tables `cargo xtask demo` wrote into docs/case-studies.md are these runs' (the figures
+    // the bounds above hold, as printed).
+    let fresh = dvpp_studies::demo::case1_table(
+        &[("case1_load", &load), ("case1_cloud", &cloud)],
+        meter("case1_load"),
+    );
+    dvpp_studies::docs::check_between(
+        &dvpp_e2e::root(),
+        dvpp_studies::docs::CASE_STUDIES,
+        "<!-- metrics:begin -->",
+        "<!-- metrics:end -->",
+        &fresh,
+        "cargo xtask demo",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+
     // The cloud against the load step, at every instant of the run.
     assert_eq!(load.time.len(), cloud.time.len());
     let gap = max_gap(&cloud.df, &load.df, 0);

@@ -134,6 +134,7 @@ fn the_outage_settles_with_grid_forming_units_and_loses_synchronism_without() {
             "{what}: {x:.3}, measured {m:.3} (±{tol})"
         );
     };
+    let mut verdicts = Vec::new();
     for (eps, m) in EPS.into_iter().zip(measured) {
         let name = format!("case2_outage_eps{eps}");
         let t = master::System::builder(&scenario(&name))
@@ -222,7 +223,18 @@ fn the_outage_settles_with_grid_forming_units_and_loses_synchronism_without() {
         if eps == "100" {
             assert!(worst <= 1.0, "{name}: {worst} of rated current");
         }
+        verdicts.push(v);
     }
+    // The table `cargo xtask outage` wrote into docs/case-studies.md is these runs'.
+    dvpp_studies::docs::check_between(
+        &dvpp_e2e::root(),
+        dvpp_studies::docs::CASE_STUDIES,
+        "<!-- outage:begin -->",
+        "<!-- outage:end -->",
+        &dvpp_studies::outage::table(&verdicts),
+        "cargo xtask outage",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
 }
 
 /// What `cargo xtask sweep` prints for one ε (docs/case-studies.md, "Case study II"): the
@@ -258,7 +270,7 @@ fn near(what: &str, x: f64, m: f64, rel: f64) {
 /// bus 2), a marginally higher nadir.
 #[test]
 fn the_sweep_and_its_monte_carlo_match_the_table() {
-    use dvpp_studies::sweep::{jobs, run_all, spread, Family, EPS, RUNS, SEED};
+    use dvpp_studies::sweep::{jobs, run_all, spread, table, Family, EPS, RUNS, SEED};
     let dist = dvpp_e2e::dist();
     let root = dist
         .parent()
@@ -322,6 +334,16 @@ fn the_sweep_and_its_monte_carlo_match_the_table() {
             random_bus: [[-0.751, -0.482], [-0.480, -0.446]],
         },
     ];
+    // The table `cargo xtask sweep` wrote into docs/case-studies.md is this sweep's.
+    dvpp_studies::docs::check_between(
+        root,
+        dvpp_studies::docs::CASE_STUDIES,
+        "<!-- case2:begin -->",
+        "<!-- case2:end -->",
+        &table(&rows),
+        "cargo xtask sweep",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     let mut median_rocof = Vec::new();
     for (&eps, m) in EPS.iter().zip(&measured) {
         let n = rows

@@ -16,7 +16,7 @@
 //! The paper gives no number for the matching ("accurate matching", the Monte Carlo responses
 //! "very similar" to R/X = 1): the bounds here are this model's.
 
-use dvpp_studies::case3::{monte_carlo, study, Run, DRAWS, SEED};
+use dvpp_studies::case3::{monte_carlo, study, table, Run, DRAWS, SEED};
 
 /// `x` within `rel` (relative) of the measured `m`.
 fn near(what: &str, x: f64, m: f64, rel: f64) {
@@ -101,6 +101,16 @@ fn rotational_control_matches_t_des_at_every_poc_beats_the_classical_one_and_hol
             );
         }
     }
+    // The table `cargo xtask case3` wrote into docs/case-studies.md is this study's.
+    dvpp_studies::docs::check_between(
+        root,
+        dvpp_studies::docs::CASE_STUDIES,
+        "<!-- case3:begin -->",
+        "<!-- case3:end -->",
+        &table(&runs),
+        "cargo xtask case3",
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
     let (ext_pf, ext_rot, int_pf, int_rot) = (
         nominal(&runs, "case3_ext_pf"),
         nominal(&runs, "case3_ext_rot"),

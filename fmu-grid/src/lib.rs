@@ -44,6 +44,7 @@ pub mod network;
 pub mod numerics;
 pub mod ports;
 pub mod powerflow;
+pub mod pss;
 
 pub use case::{Case, CaseError, DerKind, DerSlot, Event, LoadModel};
 pub use config::{GridConfig, DEFAULT_CASE};
@@ -254,8 +255,9 @@ impl Model for GridFmu {
     const IDENTIFIER: &'static str = "dvpp_grid";
     const NAME: &'static str = "DVPP reduced grid";
     const DESCRIPTION: &'static str =
-        "Phasor power-system model from a case file: power flow, two-axis machines with governors \
-         and exciters, grid-forming and grid-following DER slots, scheduled events";
+        "Phasor power-system model from a case file: power flow, sub-transient, two-axis or classical \
+         machines with governors, exciters and stabilizers, grid-forming and grid-following DER \
+         slots, scheduled events";
 
     fn declare(
         config: &GridConfig,

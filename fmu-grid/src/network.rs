@@ -1,10 +1,10 @@
 //! The algebraic network: admittance matrix, its factorization and the per-stage network solve.
 //!
 //! Complex bus admittance matrix in the frame rotating at `f_nom` (π lines, transformers,
-//! shunts, constant-impedance loads, machine Norton admittances 1/(r_a + j x'_d), grid-forming
+//! shunts, constant-impedance loads, machine Norton admittances 1/(r_a + j x_d), x_d being x''_d or x'_d, grid-forming
 //! slot admittances). It is LU-factorized once and the factorization is reused until the topology
-//! or a load changes. Sources enter as current injections. The saliency of two-axis machines
-//! (x'_q ≠ x'_d) is solved exactly per network solution through a small real system in the
+//! or a load changes. Sources enter as current injections. The saliency of the machines
+//! (x'_q ≠ x'_d, or x''_q ≠ x''_d) is solved exactly per network solution through a small real system in the
 //! machines' q-axis currents (using the impedance columns of the machine buses, cached with the
 //! factorization); grid-following injections and constant-power loads are handled by a
 //! fixed-point iteration on the factorized network (tolerance 1e-12 pu on every bus voltage).
@@ -150,7 +150,7 @@ impl Network {
             y[(i, i)] += load_y[i];
         }
         for m in inj.machines.iter().filter(|m| m.in_service) {
-            y[(m.bus, m.bus)] += C64::new(1.0, 0.0) / C64::new(m.ra, m.xd_p);
+            y[(m.bus, m.bus)] += C64::new(1.0, 0.0) / C64::new(m.ra, m.xs_d);
         }
         for d in inj.ders.iter().filter(|d| d.kind == DerKind::GridForming) {
             y[(d.bus, d.bus)] += d.y;
@@ -206,7 +206,7 @@ impl Network {
     /// Network solution for states `x` at time `t` (for messages): `sol.v` holds the starting
     /// guess and receives the bus voltages, `sol.alg` the machines' stator solutions.
     ///
-    /// The saliency of the two-axis machines (x'_q ≠ x'_d) makes each machine's current
+    /// The saliency of the machines (x'_q ≠ x'_d, x''_q ≠ x''_d) makes each machine's current
     /// real-linear but not complex-linear in its terminal voltage. It is solved exactly: with
     /// `s_j` the q-axis current of machine j, its saliency injection is `s_j c_j` at its bus, so
     /// `V = V_0 + Σ_j s_j c_j z_j` (`z_j` the impedance column of its bus), and the stator
@@ -235,16 +235,17 @@ impl Network {
                 continue;
             }
             let xm = m.own(x);
-            let det = m.ra * m.ra + m.xq_p * m.xd_p;
+            let det = m.ra * m.ra + m.xs_q * m.xs_d;
             let r = rot(xm[state::DELTA]);
+            let (ed, eq) = m.emf(xm);
             w.sal.push(Sal {
                 j,
                 bus: m.bus,
                 rot: r,
-                kd: m.xd_p / det,
+                kd: m.xs_d / det,
                 kq: -m.ra / det,
-                off: (m.ra * xm[state::EQ_P] - m.xd_p * xm[state::ED_P]) / det,
-                c: C64::new(m.xq_p - m.xd_p, 0.0) / (r * C64::new(m.ra, m.xd_p)),
+                off: (m.ra * eq - m.xs_d * ed) / det,
+                c: C64::new(m.xs_q - m.xs_d, 0.0) / (r * C64::new(m.ra, m.xs_d)),
             });
         }
         // (I - M) is constant over the iterations: M[a][b] = lin_a(c_b z_b[bus_a]).
@@ -270,8 +271,9 @@ impl Network {
                 let m = &inj.machines[sm.j];
                 let xm = m.own(x);
                 // E'' in the network frame (rot is a unit phasor), through the Norton admittance.
-                let e2 = C64::new(xm[state::ED_P], xm[state::EQ_P]) * sm.rot.conj();
-                cur[m.bus] += e2 / C64::new(m.ra, m.xd_p);
+                let (ed, eq) = m.emf(xm);
+                let e2 = C64::new(ed, eq) * sm.rot.conj();
+                cur[m.bus] += e2 / C64::new(m.ra, m.xs_d);
             }
             for d in inj.ders {
                 match d.input {

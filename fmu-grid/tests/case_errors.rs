@@ -2,7 +2,7 @@
 use grid_model::{case::builtin_text, Case, CaseError};
 
 fn base() -> String {
-    builtin_text("ieee9").unwrap().to_string()
+    builtin_text("ieee9_af").unwrap().to_string()
 }
 
 fn err(text: &str) -> CaseError {

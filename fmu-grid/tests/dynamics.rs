@@ -11,7 +11,7 @@ fn ieee9_power_flow_matches_reference() {
     let va = [
         0.0, 9.28, 4.665, -2.217, -3.687, 1.967, 0.728, 3.720, -3.989,
     ];
-    let g = Grid::new(&Case::builtin("ieee9").unwrap()).unwrap();
+    let g = Grid::new(&Case::builtin("ieee9_af").unwrap()).unwrap();
     let pf = g.power_flow();
     for i in 0..9 {
         assert!(
@@ -91,6 +91,11 @@ fn flat_start(name: &str) {
 fn flat_start_ieee9() {
     flat_start("ieee9");
 }
+#[test]
+fn flat_start_ieee9_af() {
+    flat_start("ieee9_af");
+}
+
 #[test]
 fn flat_start_ieee9_dvpp() {
     flat_start("ieee9_dvpp");
@@ -454,13 +459,13 @@ fn too_small_time_constant_is_refused_naming_the_parameter() {
         "{text}"
     );
     // an exciter and the PCC filter are checked the same way
-    let mut case = Case::builtin("ieee9").unwrap();
+    let mut case = Case::builtin("ieee9_af").unwrap();
     if let Some(grid_model::case::Exciter::IeeeT1 { ta, .. }) = &mut case.machines[2].exciter {
         *ta = 1e-5;
     }
     let e = Grid::new(&case).unwrap_err().to_string();
     assert!(e.contains("machine[3].exciter.ta"), "{e}");
-    let mut case = Case::builtin("ieee9").unwrap();
+    let mut case = Case::builtin("ieee9_af").unwrap();
     case.pcc.as_mut().unwrap().f_filter_t = 1e-5;
     let e = Grid::new(&case).unwrap_err().to_string();
     assert!(e.contains("pcc.f_filter_t"), "{e}");
@@ -468,7 +473,7 @@ fn too_small_time_constant_is_refused_naming_the_parameter() {
 
 #[test]
 fn tripped_machine_is_out_of_service_and_coasts() {
-    let case = Case::builtin("ieee9").unwrap();
+    let case = Case::builtin("ieee9_af").unwrap();
     let mut g = Grid::new(&case).unwrap();
     g.add_event(Event::GeneratorTrip {
         time: 0.5,

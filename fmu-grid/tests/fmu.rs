@@ -99,7 +99,7 @@ fn a_machine_that_loses_synchronism_ends_the_step_with_an_error_naming_it() {
         .join(format!("fmu-grid-slip-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let case = grid_model::case::builtin_text("ieee9").expect("the built-in ieee9");
+    let case = grid_model::case::builtin_text("ieee9_af").expect("the built-in ieee9");
     let case = case.replacen("p_mw = 85.0", "p_mw = 150.0", 1);
     std::fs::write(dir.join("case.toml"), case).unwrap();
     std::fs::write(

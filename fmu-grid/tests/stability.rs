@@ -3,10 +3,11 @@
 
 use grid_model::{Case, DerInput, Event, Grid, GridError, LoadModel, LOSS_OF_SYNCHRONISM_ANGLE};
 
-/// ieee9 with SG3 dispatched at 150 MW (instead of 85 MW): stable as it is, but after the trip
-/// of line 5–6 its whole output has to go through line 6–7, beyond what that path transfers.
+/// ieee9_af (Anderson & Fouad's machines) with SG3 dispatched at 150 MW (instead of 85 MW):
+/// stable as it is, but after the trip of line 5–6 its whole output has to go through line 6–7,
+/// beyond what that path transfers.
 fn ieee9_sg3_at_150_mw() -> Case {
-    let text = grid_model::case::builtin_text("ieee9").expect("the built-in ieee9");
+    let text = grid_model::case::builtin_text("ieee9_af").expect("the built-in ieee9_af");
     assert!(text.contains("p_mw = 85.0"), "SG3's dispatch");
     Case::from_toml_str(&text.replacen("p_mw = 85.0", "p_mw = 150.0", 1)).unwrap()
 }

@@ -126,6 +126,7 @@ pub struct Load {
 pub use crate::exciter::Exciter;
 pub use crate::governor::Governor;
 pub use crate::machine::{Machine, MachineModel, ParamBase};
+pub use crate::pss::Pss;
 
 /// DER slot kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -364,7 +365,8 @@ impl Case {
         Ok(case)
     }
 
-    /// Built-in case by name: `ieee9`, `ieee9_dvpp`, `ieee9_hybrid`, `ieee9_mv`, `thevenin_dvpp`.
+    /// Built-in case by name: `ieee9`, `ieee9_af`, `ieee9_dvpp`, `ieee9_hybrid`, `ieee9_mv`,
+    /// `thevenin_dvpp`.
     pub fn builtin(name: &str) -> Option<Case> {
         let text = builtin_text(name)?;
         Some(Case::from_toml_str(text).expect("built-in case is valid"))
@@ -374,6 +376,7 @@ impl Case {
     pub fn builtin_names() -> &'static [&'static str] {
         &[
             "ieee9",
+            "ieee9_af",
             "ieee9_dvpp",
             "ieee9_hybrid",
             "ieee9_mv",
@@ -463,6 +466,7 @@ impl Case {
 pub fn builtin_text(name: &str) -> Option<&'static str> {
     match name {
         "ieee9" => Some(include_str!("../../cases/ieee9.toml")),
+        "ieee9_af" => Some(include_str!("../../cases/ieee9_af.toml")),
         "ieee9_dvpp" => Some(include_str!("../../cases/ieee9_dvpp.toml")),
         "ieee9_hybrid" => Some(include_str!("../../cases/ieee9_hybrid.toml")),
         "ieee9_mv" => Some(include_str!("../../cases/ieee9_mv.toml")),

@@ -145,7 +145,7 @@ impl Grid {
                 o.p = s.re;
                 o.q = s.im;
                 o.pe = m.pe(&a);
-                o.efd = m.efd(&self.x);
+                o.efd = m.efd(&self.x, vt.norm());
                 gen += s.re;
                 hw += m.h * xm[state::OMEGA];
                 hs += m.h;

@@ -630,6 +630,7 @@ def report(case_path, results):
 
 
 def main(argv=None):
+    global ANDES_STEP, DT
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--case", default=str(DEFAULT_CASE))
     ap.add_argument("--out", default=str(ROOT / "target" / "andes"))
@@ -637,7 +638,6 @@ def main(argv=None):
     ap.add_argument("--andes-step", type=float, default=ANDES_STEP,
                     help="ANDES's fixed step, s, also the comparisons' sampling interval")
     args = ap.parse_args(argv)
-    global ANDES_STEP, DT
     ANDES_STEP = DT = args.andes_step
     print(report(args.case, study(load_case(args.case), args.out, args.tf)))
 

@@ -41,33 +41,66 @@ def test_power_flow_point_agrees(results):
             assert abs(m["p0_andes"] - m["p0_ours"]) < 1e-5, m
 
 
+# Per event: |Δ nadir| (Hz), |Δ RoCoF| over 100 ms and over 500 ms (fraction of ANDES's),
+# Δf_COI NRMSE, per-machine speed NRMSE and electrical-power NRMSE (all peak-normalised), each
+# about three times the value measured with ANDES at its 20 ms step (given after each bound).
 BOUNDS = {
-    # event: (|Δnadir| Hz, RoCoF 100 ms rel., RoCoF 500 ms rel., Δf NRMSE, speed NRMSE, power NRMSE)
-    "load_step": None,
-    "generator_trip": None,
-    "line_trip": None,
+    "load_step": dict(nadir=1e-4,  # 1e-5 Hz
+                      rocof100=0.01, rocof500=0.005,  # 0.16 %, 0.00 %
+                      f=2e-4, omega=5e-4, p=2e-3),  # 0.003 %; 0.003-0.011 %; 0.022-0.058 %
+    "generator_trip": dict(nadir=1e-4,  # 1e-5 Hz
+                           rocof100=0.01, rocof500=0.005,  # 0.12 %, 0.00 %
+                           f=2e-4, omega=5e-4, p=2e-3),  # 0.003 %; 0.005-0.011 %; 0.021-0.043 %
+    "line_trip": dict(nadir=1e-4,  # 2e-5 Hz (the extreme is above 50 Hz: losses fall)
+                      rocof100=0.015, rocof500=0.005,  # 0.44 %, 0.09 %
+                      f=1e-3, omega=1e-2, p=1.5e-2),  # 0.034 %; 0.05-0.31 %; 0.11-0.43 %
 }
 
 
 @pytest.mark.parametrize("event", list(harness.EVENTS))
 def test_event_agrees(results, event):
     r = results["events"][event]
-    assert r["coi_check"] < 1e-9  # coi.f is the H-weighted mean of the sg[].omega we compare
-    bounds = BOUNDS[event]
-    if bounds is None:
-        pytest.skip("bounds not yet measured")
-    dnadir, rocof100, rocof500, f_nrmse, w_nrmse, p_nrmse = bounds
-    assert abs(r["nadir_ours"] - r["nadir_andes"]) < dnadir
-    assert abs(r["rocof100_ours"] - r["rocof100_andes"]) < rocof100 * abs(r["rocof100_andes"])
-    assert abs(r["rocof500_ours"] - r["rocof500_andes"]) < rocof500 * abs(r["rocof500_andes"])
-    assert r["f_nrmse"] < f_nrmse
-    for m in r["machines"]:
-        assert m["omega_nrmse"] < w_nrmse, m
-        assert m["p_nrmse"] < p_nrmse, m
+    assert r["coi_check"] < 1e-9  # coi.f is the H-weighted mean of the sg[].omega compared
+    b = BOUNDS[event]
+    assert abs(r["nadir_ours"] - r["nadir_andes"]) < b["nadir"]
+    assert abs(r["rocof100_ours"] - r["rocof100_andes"]) < b["rocof100"] * abs(r["rocof100_andes"])
+    assert abs(r["rocof500_ours"] - r["rocof500_andes"]) < b["rocof500"] * abs(r["rocof500_andes"])
+    assert r["f_nrmse"] < b["f"]
+    compared = [m for m in r["machines"] if m["in_service"]]
+    assert len(compared) == (2 if event == "generator_trip" else 3)
+    for m in compared:
+        assert m["omega_nrmse"] < b["omega"], m
+        assert m["p_nrmse"] < b["p"], m
+    # the event moved the system: a real comparison, not two flat lines
+    assert abs(r["nadir_andes"] - 50.0) > 0.04
+
+
+def swing_modes(study):
+    """ANDES's eigenvalues above 0.5 Hz (the two inter-machine swings) and the fitted modes."""
+    return [(f, z) for f, z in study["eig"] if f > 0.5]
 
 
 def test_modes_agree(results):
-    pytest.skip("bounds not yet measured")
+    """Measured (Hz, ζ): with PSS, ANDES eigenvalues (1.391, 28.94 %), (1.681, 17.72 %), ANDES
+    fits (1.380, 29.25 %), (1.671, 17.82 %), our fits (1.383, 29.39 %), (1.677, 17.94 %);
+    without, eigenvalues (1.096, 11.65 %), (1.237, 9.70 %), ANDES fits (1.095, 11.46 %),
+    (1.235, 9.55 %), our fits (1.096, 11.49 %), (1.237, 9.59 %)."""
+    damping = {}
+    for label, s in results["modes"].items():
+        swings = swing_modes(s)
+        assert len(swings) == 2, s["eig"]
+        for f, z in swings:
+            ours, fit = harness.nearest(s["fit_ours"], f), harness.nearest(s["fit_andes"], f)
+            assert ours is not None and fit is not None, (label, f, s)
+            # ours against ANDES's eigenvalue: measured within 0.008 Hz and 0.45 points of ζ
+            assert abs(ours[0] - f) < 0.02 and abs(ours[1] - z) < 0.01, (label, f, z, ours)
+            # ours against ANDES's own fit, the same method on ANDES's response: within 0.006 Hz
+            # and 0.14 points of ζ
+            assert abs(ours[0] - fit[0]) < 0.015 and abs(ours[1] - fit[1]) < 0.005, (label, fit, ours)
+        damping[label] = [z for _, z in swings]
+    # The stabilizers add damping to both swings (measured +17 and +8 points).
+    for with_pss, without in zip(damping["with PSS"], damping["without PSS"]):
+        assert with_pss > without + 0.05
 
 
 if __name__ == "__main__":

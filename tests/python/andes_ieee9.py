@@ -261,7 +261,6 @@ def build_andes(case, events=(), *, pss_filter=0.0):
         else:
             names["governor"].append(None)
     branches = branch_names(case)
-    n_shunts = len(case.get("shunt", []))
     for k, ev in enumerate(events):
         kind = ev["type"]
         if kind == "load_step":
@@ -283,7 +282,6 @@ def build_andes(case, events=(), *, pss_filter=0.0):
             ss.add("Toggle", {"model": "Line", "dev": ev["branch"], "t": ev["time"]})
         else:
             raise NotImplementedError(kind)
-    del n_shunts
     # Loads: constant impedance in the time-domain simulation (ANDES's default weights, stated).
     ss.PQ.config.p2p, ss.PQ.config.p2i, ss.PQ.config.p2z = 0.0, 0.0, 1.0
     ss.PQ.config.q2q, ss.PQ.config.q2i, ss.PQ.config.q2z = 0.0, 0.0, 1.0
@@ -386,8 +384,10 @@ def bundle_ours(case, event, name, work):
     }
     path = work / f"{name}.toml"
     path.write_text(to_toml(scenario))
-    subprocess.run(["cargo", "xtask", "bundle", "--scenario", str(path)], cwd=ROOT, check=True,
-                   capture_output=True, text=True)
+    done = subprocess.run(["cargo", "xtask", "bundle", "--scenario", str(path)], cwd=ROOT,
+                          capture_output=True, text=True)
+    if done.returncode != 0:
+        raise RuntimeError(f"cargo xtask bundle --scenario {path} failed:\n{done.stdout}{done.stderr}")
     return ROOT / "dist" / name / f"{name}.ssp"
 
 
@@ -619,7 +619,8 @@ def study(case, out, tf=10.0):
 
 
 def report(case_path, results):
-    parts = [f"case `{pathlib.Path(case_path).resolve().relative_to(ROOT)}`", ""]
+    path = pathlib.Path(case_path).resolve()
+    parts = [f"case `{path.relative_to(ROOT) if path.is_relative_to(ROOT) else path}`", ""]
     for key, r in results["events"].items():
         ev = {k: v for k, v in EVENTS[key].items() if k != "type"}
         parts.append(event_table(f"{key} {ev}", r))

@@ -32,3 +32,15 @@ def require_dpsim(test_file):
         print(f"{test_file} skipped: {reason}")
         warnings.warn(reason)
         pytest.skip(reason, allow_module_level=True)
+
+
+def require_andes(test_file):
+    """Skip the calling test module, saying why, when ANDES does not import."""
+    try:
+        import andes  # noqa: F401
+    except ImportError as error:
+        reason = (f"andes cannot be imported ({error}) on CPython {platform.python_version()}; "
+                  "cargo xtask test installs it (xtask/src/main.rs, PYTHON_PACKAGES)")
+        print(f"{test_file} skipped: {reason}")
+        warnings.warn(reason)
+        pytest.skip(reason, allow_module_level=True)

@@ -1,4 +1,4 @@
-//! Converter limits end to end in our master: severe events (a 250 MW load step, a trip of SG1,
+//! Converter limits end to end in our master: severe events (a 150 MW load step, a trip of SG1,
 //! a trip of SG1 and SG3) keep every unit within its current limit and its dc link within its
 //! range, each unit's energy account closes, and a run with no operating point left stops with
 //! a one-line cause and its trajectory kept; an experiment that cannot run is refused as such.
@@ -103,7 +103,7 @@ fn no_chatter(name: &str, t: &Table) {
 
 #[test]
 fn severe_events_stay_within_the_converter_limits() {
-    for name in ["case1_load", "limits_load250", "limits_sg1_trip"] {
+    for name in ["case1_load", "limits_load150", "limits_sg1_trip"] {
         let (t, outcome) = run(name);
         let outcome = outcome.unwrap_or_else(|e| panic!("{name}: {e}"));
         assert!(
@@ -132,7 +132,7 @@ fn severe_events_stay_within_the_converter_limits() {
             gap < 1e-3,
             "{name}: PCC and COI frequencies differ by {gap}"
         );
-        if name == "limits_load250" {
+        if name == "limits_load150" {
             no_chatter(name, &t);
         }
         if name != "case1_load" {

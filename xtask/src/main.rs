@@ -26,6 +26,8 @@ const PYTHON_PACKAGES: &[&str] = &[
     // tests/python/test_results.py reads the .mat result files as users do.
     "scipy==1.17.1",
     "dpsim==1.4.0; sys_platform == 'linux' and platform_machine == 'x86_64' and python_version >= '3.10' and python_version < '3.14'",
+    // tests/python/test_andes.py: the grid model against ANDES's on the same case file.
+    "andes==2.0.0",
 ];
 
 type Result<T = ()> = std::result::Result<T, String>;
@@ -515,6 +517,14 @@ fn python_env() -> Result<PathBuf> {
             "--disable-pip-version-check",
         ])
         .args(PYTHON_PACKAGES))?;
+    // ANDES generates its models' numerical code on first use (about 40 s): done once here, into
+    // the venv's own copy of the package (where ANDES looks after ~/.andes), so that no test
+    // pays for it.
+    run(Command::new(&python).args([
+        "-c",
+        "import pathlib, andes, andes.main; \
+         andes.main.prepare(quick=True, pycode_path=str(pathlib.Path(andes.__file__).parent / 'pycode'))",
+    ]))?;
     std::fs::write(&marker, wanted).map_err(|e| e.to_string())?;
     Ok(python)
 }

@@ -129,15 +129,15 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
         "case1_load",
         &load,
         &Bounds {
-            // measured: 4.17 / 8.33 / 18.47 %
+            // measured: 4.20 / 8.39 / 18.60 %
             f: [0.05, 0.10, 0.22],
-            // measured: 1.69 / 3.37 / 7.51 %
+            // measured: 1.69 / 3.37 / 7.50 %
             v: [0.02, 0.04, 0.09],
-            // measured: wind 0.38 % 19.7 mHz, PV 0.32 % 19.7 mHz, BESS 1.72 % 42.6 mHz
+            // measured: wind 0.28 % 19.7 mHz, PV 0.32 % 19.7 mHz, BESS 1.72 % 39.7 mHz
             coherency: [(0.005, 0.025), (0.005, 0.025), (0.021, 0.05)],
-            // measured: 0.30, 0.55, 1.94 %
+            // measured: 0.31, 0.56, 1.92 %
             v_dc: [0.01, 0.01, 0.025],
-            nadir: [-0.1354, -0.1397],
+            nadir: [-0.1353, -0.1396],
         },
     );
     // The cloud against its own desired response: the operator takes Δp_pcc against the
@@ -146,13 +146,13 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
         "case1_cloud",
         &cloud,
         &Bounds {
-            // measured: 4.25 / 8.49 / 18.81 %
+            // measured: 4.28 / 8.55 / 18.94 %
             f: [0.05, 0.10, 0.22],
-            // measured: 0.87 / 1.73 / 3.81 %
+            // measured: 0.86 / 1.71 / 3.77 %
             v: [0.011, 0.021, 0.045],
-            // measured: wind 0.30 % 14.7 mHz, PV 2.12 % 65.8 mHz, BESS 1.71 % 43.3 mHz
+            // measured: wind 0.28 % 12.1 mHz, PV 2.11 % 54.1 mHz, BESS 1.71 % 41.3 mHz
             coherency: [(0.004, 0.02), (0.026, 0.08), (0.021, 0.05)],
-            // measured: 0.47, 0.86, 1.96 %
+            // measured: 0.45, 0.89, 1.98 %
             v_dc: [0.01, 0.012, 0.025],
             nadir: [-0.1356, -0.1406],
         },
@@ -184,9 +184,9 @@ fn case_study_one_matches_t_des_and_the_cloud_leaves_the_frequency_nearly_unaffe
         gap * 100.0,
         gap_after * 100.0
     );
-    // measured: 14.53 % (at the event), 1.14 % from t = 1.02 s on
+    // measured: 14.54 % (at the event), 0.68 % from t = 1.02 s on
     assert!(
-        gap <= 0.17 && gap_after <= 0.015,
+        gap <= 0.17 && gap_after <= 0.01,
         "cloud vs load step: Δf_pcc gap {:.2} %, {:.2} % after 1.02 s",
         gap * 100.0,
         gap_after * 100.0

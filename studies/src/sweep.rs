@@ -81,11 +81,12 @@ pub struct Row {
     pub rocof_100: f64,
     pub rocof_500: f64,
     pub settle_hz: f64,
-    /// NRMSE of Δf_pcc and Δv_pcc against the desired response over the run, and of Δf_pcc
-    /// over the first [`TRANSIENT`] s after the step (same normalization).
+    /// NRMSE of Δf_pcc and Δv_pcc against the desired response over the run, and over the
+    /// first [`TRANSIENT`] s after the step (same normalization).
     pub f_nrmse: f64,
     pub v_nrmse: f64,
     pub f_nrmse_transient: f64,
+    pub v_nrmse_transient: f64,
     pub v_dc_dev: f64,
     pub i_max: f64,
     pub error: Option<String>,
@@ -211,6 +212,7 @@ fn measure(job: Job, table: Result<Table, String>, units: &[String]) -> Row {
         f_nrmse: f64::NAN,
         v_nrmse: f64::NAN,
         f_nrmse_transient: f64::NAN,
+        v_nrmse_transient: f64::NAN,
         v_dc_dev: f64::NAN,
         i_max: f64::NAN,
         error: None,
@@ -231,7 +233,9 @@ fn measure(job: Job, table: Result<Table, String>, units: &[String]) -> Row {
         crate::units_with(&t.columns, ports::V_DC, units)?;
         let signals = Signals::of(&t)?;
         let m = signals.metrics();
-        row.f_nrmse_transient = signals.transient(T_EVENT, TRANSIENT).f_nrmse;
+        let transient = signals.transient(T_EVENT, TRANSIENT);
+        row.f_nrmse_transient = transient.f_nrmse;
+        row.v_nrmse_transient = transient.v_nrmse;
         row.f_nrmse = m.f_nrmse;
         row.v_nrmse = m.v_nrmse;
         row.v_dc_dev = m.v_dc.iter().map(|d| d.1).fold(0.0, f64::max);
@@ -320,13 +324,13 @@ pub fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, 
 fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
     let mut text = String::from(
         "eps,family,run,bus,dP_MW,coi_nadir_Hz,pcc_nadir_Hz,coi_rocof_100ms_Hz_per_s,\
-         coi_rocof_500ms_Hz_per_s,coi_settling_Hz,f_nrmse,f_nrmse_first_5s,v_nrmse,max_v_dc_dev,\
-         max_i_ac_pu,error\n",
+         coi_rocof_500ms_Hz_per_s,coi_settling_Hz,f_nrmse,f_nrmse_first_5s,v_nrmse,\
+         v_nrmse_first_5s,max_v_dc_dev,max_i_ac_pu,error\n",
     );
     for r in rows {
         let j = &r.job;
         text += &format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
             j.eps as f64 / 100.0,
             j.family.name(),
             j.run,
@@ -340,6 +344,7 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
             r.f_nrmse,
             r.f_nrmse_transient,
             r.v_nrmse,
+            r.v_nrmse_transient,
             r.v_dc_dev,
             r.i_max,
             r.error.as_deref().unwrap_or("").replace([',', '\n'], ";")
@@ -434,7 +439,7 @@ pub fn spread(rows: &[Row], eps: u32, family: Family) -> Spread {
 /// The table of the nominal runs and the Monte Carlo spreads, as Markdown.
 pub fn table(rows: &[Row]) -> String {
     let mut out = format!(
-        "| ε | f NRMSE: run / first {TRANSIENT} s | v NRMSE | COI nadir | COI RoCoF 100 ms | COI RoCoF 500 ms | largest dc-link deviation | largest current | bus 2: RoCoF/100 MW (5–95 %) | bus 2: nadir/100 MW (5–95 %) | random bus: RoCoF/100 MW (5–95 %) | random bus: nadir/100 MW (5–95 %) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+        "| ε | f NRMSE: run / first {TRANSIENT} s | v NRMSE: run / first {TRANSIENT} s | COI nadir | COI RoCoF 100 ms | COI RoCoF 500 ms | largest dc-link deviation | largest current | bus 2: RoCoF/100 MW (5–95 %) | bus 2: nadir/100 MW (5–95 %) | random bus: RoCoF/100 MW (5–95 %) | random bus: nadir/100 MW (5–95 %) |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
     );
     for eps in EPS {
         let Some(n) = rows
@@ -448,11 +453,12 @@ pub fn table(rows: &[Row]) -> String {
             spread(rows, eps, Family::RandomBus),
         );
         out += &format!(
-            "| {:.2} | {:.2} % / {:.2} % | {:.1} % | {:.4} Hz | {:.4} Hz/s | {:.4} Hz/s | {:.2} % | {:.2} pu | {:.3} … {:.3} Hz/s | {:.3} … {:.3} Hz | {:.3} … {:.3} Hz/s | {:.3} … {:.3} Hz |\n",
+            "| {:.2} | {:.2} % / {:.2} % | {:.1} % / {:.1} % | {:.4} Hz | {:.4} Hz/s | {:.4} Hz/s | {:.2} % | {:.2} pu | {:.3} … {:.3} Hz/s | {:.3} … {:.3} Hz | {:.3} … {:.3} Hz/s | {:.3} … {:.3} Hz |\n",
             eps as f64 / 100.0,
             n.f_nrmse * 100.0,
             n.f_nrmse_transient * 100.0,
             n.v_nrmse * 100.0,
+            n.v_nrmse_transient * 100.0,
             n.coi_nadir_hz,
             n.rocof_100,
             n.rocof_500,

@@ -125,6 +125,12 @@ pub enum GridError {
         unit: String,
         angle: f64,
     },
+    /// The centre-of-inertia frequency `f` (pu) left [`crate::grid::FREQUENCY_BAND`].
+    FrequencyCollapse {
+        t: f64,
+        f: f64,
+        f_nom: f64,
+    },
     BadSlot {
         index: usize,
         reason: String,
@@ -184,6 +190,19 @@ impl fmt::Display for GridError {
                     "t = {t} s: {cause}the network solution did not converge (residual \
                      {residual:.3e} pu at bus {mismatch_bus}); lowest voltage {v_min:.3} pu at \
                      bus {bus}"
+                )
+            }
+            GridError::FrequencyCollapse { t, f: freq, f_nom } => {
+                let t = round_time(*t);
+                let (lo, hi) = crate::grid::FREQUENCY_BAND;
+                write!(
+                    f,
+                    "t = {t} s: frequency collapse: the centre-of-inertia frequency reached \
+                     {:.3} Hz, outside {:.1}-{:.1} Hz where the machines' frequency protection \
+                     disconnects them",
+                    freq * f_nom,
+                    lo * f_nom,
+                    hi * f_nom
                 )
             }
             GridError::LossOfSynchronism { t, unit, angle } => {

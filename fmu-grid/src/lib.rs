@@ -51,7 +51,7 @@ pub use config::{GridConfig, DEFAULT_CASE};
 pub use events::{EventOverride, EventState};
 pub use grid::{
     DerInput, DerOutput, DerSetpoint, Grid, GridError, MachineOutput, Outputs, PccOutput,
-    SlotLimit, LOSS_OF_SYNCHRONISM_ANGLE,
+    SlotLimit, FREQUENCY_BAND, LOSS_OF_SYNCHRONISM_ANGLE,
 };
 pub use integration::{MAX_INTERNAL_STEP, MIN_INTERNAL_STEP, STEPS_PER_TIME_CONSTANT};
 pub use network::CONST_POWER_V_MIN;
@@ -136,6 +136,7 @@ pub struct GridFmu {
     energized: Boolean,
     /// Generation, load, losses and generation − load − losses.
     balance: [Real; 4],
+    load_shed: Real,
     /// The reduced internal step (if any) has been logged.
     step_logged: bool,
 }
@@ -198,6 +199,7 @@ impl GridFmu {
         s[load] = o.load_p;
         s[loss] = o.loss_p;
         s[mismatch] = o.balance_p;
+        s[self.load_shed] = self.grid.load_shed();
     }
 }
 
@@ -542,6 +544,12 @@ impl Model for GridFmu {
                  network solver tolerance)",
             )),
         ];
+        let load_shed = v.real(Spec::output(
+            "sys.load_shed",
+            "1",
+            "share of the power-flow point's load shed by the case's under-frequency load \
+             shedding stages ([[ufls]]), 0 to 1",
+        ));
         let area_load = (!case.pocs.is_empty()).then(|| {
             [
                 v.real(Spec::output(
@@ -690,6 +698,7 @@ impl Model for GridFmu {
             coi_f,
             energized,
             balance,
+            load_shed,
             step_logged: false,
         })
     }

@@ -1,7 +1,9 @@
 //! Loss of synchronism and voltage collapse: a case that really separates, one whose voltages
 //! collapse, and the built-in cases with their normal events, which must do neither.
 
-use grid_model::{Case, DerInput, Event, Grid, GridError, LoadModel, LOSS_OF_SYNCHRONISM_ANGLE};
+use grid_model::{
+    Case, DerInput, Event, Grid, GridError, LoadModel, FREQUENCY_BAND, LOSS_OF_SYNCHRONISM_ANGLE,
+};
 
 /// ieee9_af (Anderson & Fouad's machines) with SG3 dispatched at 150 MW (instead of 85 MW):
 /// stable as it is, but after the trip of line 5–6 its whole output has to go through line 6–7,
@@ -153,4 +155,97 @@ fn a_huge_constant_power_load_collapses_the_voltage_naming_the_bus() {
         "{text}"
     );
     assert!(text.ends_with(" pu at bus 5"), "{text}");
+}
+
+/// ieee9 (the paper's machines) with the shedding stages of ieee9_dvpp.
+fn ieee9_with_ufls() -> Case {
+    let mut case = Case::builtin("ieee9").unwrap();
+    case.ufls = Case::builtin("ieee9_dvpp").unwrap().ufls;
+    assert_eq!(case.ufls.len(), 6);
+    case
+}
+
+#[test]
+fn under_frequency_stages_shed_load_in_order_and_a_lost_frequency_ends_the_run() {
+    // SG3's trip (48 MW) leaves the frequency above 49.0 Hz: nothing is shed.
+    let mut g = Grid::new(&ieee9_with_ufls()).unwrap();
+    g.add_event(Event::GeneratorTrip {
+        time: 1.0,
+        machine: 3,
+    })
+    .unwrap();
+    run(&mut g, 10.0).unwrap();
+    assert_eq!(g.load_shed(), 0.0);
+    // SG1's trip (about 190 MW of 315): the stages act one after the other as the frequency
+    // passes their thresholds, the balance holds, and SG2 and SG3 carry what is left. Measured:
+    // five stages (37.5 %), the last at 48.19 Hz; 48.45 Hz at 30 s.
+    let (shed, end) = trip_sg1(true);
+    assert!(end.is_ok(), "{end:?}");
+    assert_eq!(shed.len(), 5, "{shed:?}");
+    // Without the stages the frequency leaves 47.5-51.5 Hz (measured: at t = 2.69 s) and the
+    // run ends saying so.
+    let (shed, end) = trip_sg1(false);
+    assert!(shed.is_empty());
+    let err = end.expect_err("no operating point is left");
+    let GridError::FrequencyCollapse { f, .. } = err else {
+        panic!("not a frequency collapse: {err}");
+    };
+    assert!(
+        f < FREQUENCY_BAND.0 && f > FREQUENCY_BAND.0 - 0.005,
+        "f = {f}"
+    );
+    assert!(err.to_string().contains("frequency collapse"), "{err}");
+}
+
+/// ieee9 (with the shedding stages or without) with SG1 tripped at 1 s, run for 30 s in 10 ms
+/// steps with the power balance checked at every step: the (COI Hz, share shed) at which each
+/// stage acted, and how the run ended.
+fn trip_sg1(ufls: bool) -> (Vec<(f64, f64)>, Result<(), GridError>) {
+    let case = if ufls {
+        ieee9_with_ufls()
+    } else {
+        Case::builtin("ieee9").unwrap()
+    };
+    let mut g = Grid::new(&case).unwrap();
+    g.add_event(Event::GeneratorTrip {
+        time: 1.0,
+        machine: 1,
+    })
+    .unwrap();
+    let mut shed: Vec<(f64, f64)> = Vec::new();
+    let mut end = Ok(());
+    for i in 0..3000 {
+        if let Err(e) = g.step(i as f64 * 0.01, 0.01) {
+            end = Err(e);
+            break;
+        }
+        let o = g.outputs();
+        assert!(o.balance_p.abs() < 1e-6, "balance {}", o.balance_p);
+        if g.load_shed() > shed.last().map_or(0.0, |s| s.1) {
+            shed.push((o.coi_f * 50.0, g.load_shed()));
+        }
+    }
+    println!(
+        "SG1 trip, ufls {ufls}: stages (COI Hz, share shed) {shed:?}; end t = {:.2} s, COI \
+         {:.3} Hz, {:?}",
+        g.time(),
+        g.outputs().coi_f * 50.0,
+        end.as_ref().map_err(|e| e.to_string())
+    );
+    for w in shed.windows(2) {
+        assert!(w[1].0 < w[0].0, "stages in order of frequency: {shed:?}");
+    }
+    (shed, end)
+}
+
+#[test]
+fn bad_shedding_stages_are_refused_by_name() {
+    let mut case = ieee9_with_ufls();
+    case.ufls[2].f_hz = 50.5;
+    let e = case.validate().unwrap_err().to_string();
+    assert!(e.contains("ufls stage 3") && e.contains("f_hz"), "{e}");
+    let mut case = ieee9_with_ufls();
+    case.ufls[0].shed = 0.8;
+    let e = case.validate().unwrap_err().to_string();
+    assert!(e.contains("sum of shed"), "{e}");
 }

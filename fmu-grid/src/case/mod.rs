@@ -337,6 +337,21 @@ pub struct Case {
     pub mv: Option<MvLines>,
     #[serde(rename = "event", default)]
     pub events: Vec<Event>,
+    /// Under-frequency load shedding, stage by stage.
+    #[serde(rename = "ufls", default, skip_serializing_if = "Vec::is_empty")]
+    pub ufls: Vec<UflsStage>,
+}
+
+/// One stage of under-frequency load shedding: once the centre-of-inertia frequency has been
+/// below `f_hz` for `delay` seconds, every load is reduced by `shed` of its initial value
+/// (constant-impedance and constant-power parts alike). Each stage acts once.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct UflsStage {
+    pub f_hz: f64,
+    pub shed: f64,
+    #[serde(default)]
+    pub delay: f64,
 }
 
 /// Branch as seen by the network code: lines and transformers in one list (lines first).

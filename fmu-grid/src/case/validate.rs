@@ -337,6 +337,34 @@ impl Case {
     pub fn validate(&self) -> Result<(), CaseError> {
         pos("case", "base_mva", self.base_mva)?;
         pos("case", "f_nom", self.f_nom)?;
+        let mut total = 0.0;
+        for (k, st) in self.ufls.iter().enumerate() {
+            let el = format!("ufls stage {}", k + 1);
+            let f = st.f_hz;
+            check_range(
+                &el,
+                "f_hz",
+                f,
+                f > 0.5 * self.f_nom && f < self.f_nom,
+                "0.5 f_nom < f_hz < f_nom",
+            )?;
+            check_range(
+                &el,
+                "shed",
+                st.shed,
+                st.shed > 0.0 && st.shed <= 1.0,
+                "0 < shed <= 1",
+            )?;
+            check_range(
+                &el,
+                "delay",
+                st.delay,
+                (0.0..=60.0).contains(&st.delay),
+                "0 <= delay <= 60 s",
+            )?;
+            total += st.shed;
+        }
+        check_range("ufls", "sum of shed", total, total <= 1.0, "<= 1")?;
         if self.buses.is_empty() {
             return Err(CaseError::NoBus);
         }

@@ -172,6 +172,8 @@ impl Grid {
                 self.rk4(hs)?;
                 self.t = t0 + (i + 1) as f64 * hs;
                 self.check_synchronism()?;
+                self.shed_load()?;
+                self.check_frequency()?;
             }
             self.t = seg_end;
         }

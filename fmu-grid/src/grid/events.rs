@@ -1,4 +1,5 @@
-//! Scheduled events (load steps, generator and line trips): their state, overrides and firing.
+//! Scheduled events (load steps, generator and line trips): their state, overrides and firing;
+//! under-frequency load shedding.
 
 use super::Grid;
 use crate::case::{Event, LoadModel};
@@ -158,5 +159,63 @@ impl Grid {
             .filter(|e| e.enabled && !e.fired && e.event.time() > self.t + EVENT_EPS)
             .map(|e| e.event.time())
             .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// The state of one under-frequency shedding stage.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub(crate) struct UflsState {
+    /// Since when the centre-of-inertia frequency has been below the stage's threshold.
+    pub below_since: Option<f64>,
+    pub acted: bool,
+}
+
+impl Grid {
+    /// Under-frequency load shedding after an internal step: every stage whose threshold the
+    /// centre-of-inertia frequency has been below for the stage's delay sheds its share of the
+    /// loads at the power-flow point. Nothing to do without machines in service.
+    pub(crate) fn shed_load(&mut self) -> Result<(), GridError> {
+        if self.ufls.is_empty() {
+            return Ok(());
+        }
+        let Some(f) = self.coi_frequency() else {
+            return Ok(());
+        };
+        let f_hz = f * self.case.f_nom;
+        let mut shed = 0.0;
+        for (st, s) in self.case.ufls.iter().zip(&mut self.ufls) {
+            if s.acted {
+                continue;
+            }
+            if f_hz < st.f_hz {
+                let since = *s.below_since.get_or_insert(self.t);
+                if self.t - since >= st.delay - EVENT_EPS {
+                    s.acted = true;
+                    shed += st.shed;
+                }
+            } else {
+                s.below_since = None;
+            }
+        }
+        if shed > 0.0 {
+            for b in 0..self.n {
+                self.load_y[b] -= self.load_y0[b] * shed;
+                self.load_s[b] -= self.load_s0[b] * shed;
+            }
+            self.net = None;
+            self.resolve()?;
+        }
+        Ok(())
+    }
+
+    /// The share of the power-flow point's load shed so far by under-frequency stages.
+    pub fn load_shed(&self) -> f64 {
+        self.case
+            .ufls
+            .iter()
+            .zip(&self.ufls)
+            .filter(|(_, s)| s.acted)
+            .map(|(st, _)| st.shed)
+            .sum()
     }
 }

@@ -17,6 +17,7 @@ pub use crate::der::{DerInput, DerSetpoint, SlotLimit};
 pub use crate::error::GridError;
 pub use crate::integration::MAX_INTERNAL_STEP;
 pub use crate::network::CONST_POWER_V_MIN;
+use events::UflsState;
 pub use events::{EventOverride, EventState};
 pub use outputs::{DerOutput, MachineOutput, Outputs, PccOutput};
 
@@ -36,6 +37,13 @@ use std::f64::consts::PI;
 /// electrical power it exchanges with the rest of the grid has changed sign, and a first-swing
 /// stable system stays well inside it).
 pub const LOSS_OF_SYNCHRONISM_ANGLE: f64 = PI;
+
+/// The band of centre-of-inertia frequency, pu, outside which the machines' frequency
+/// protection disconnects them: 47.5 to 51.5 Hz at 50 Hz, the range the European network code
+/// for generators (Commission Regulation (EU) 2016/631, Table 2) asks them to ride through. A
+/// grid whose frequency leaves it has no operating point left; the step ends with
+/// [`GridError::FrequencyCollapse`].
+pub const FREQUENCY_BAND: (f64, f64) = (0.95, 1.03);
 
 /// A point of coupling as the simulation uses it.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -102,6 +110,12 @@ pub struct Grid {
     branches: Vec<BranchData>,
     load_y: Vec<C64>,
     load_s: Vec<C64>,
+    /// The loads at the power-flow point: what an under-frequency shedding stage takes its
+    /// share of.
+    load_y0: Vec<C64>,
+    load_s0: Vec<C64>,
+    /// Per under-frequency shedding stage of the case: its timer and whether it acted.
+    ufls: Vec<UflsState>,
     machines: Vec<MachineRt>,
     ders: Vec<DerRt>,
     pcc_bus: usize,
@@ -307,6 +321,9 @@ impl Grid {
             wb,
             n,
             branches,
+            load_y0: load_y.clone(),
+            load_s0: load_s.clone(),
+            ufls: vec![UflsState::default(); case.ufls.len()],
             load_y,
             load_s,
             machines,

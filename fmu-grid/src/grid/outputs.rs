@@ -1,7 +1,7 @@
 //! The grid's outputs: per DER slot, machine, PCC and POC, the power balance, and the
 //! centre-of-inertia checks on the machines' angles.
 
-use super::{Grid, LOSS_OF_SYNCHRONISM_ANGLE};
+use super::{Grid, FREQUENCY_BAND, LOSS_OF_SYNCHRONISM_ANGLE};
 use crate::case::{BranchData, DerKind};
 use crate::der::{DerInput, DerRt};
 use crate::error::GridError;
@@ -257,6 +257,34 @@ impl Grid {
             hs += m.h;
         }
         (hs > 0.0).then(|| hd / hs)
+    }
+
+    /// Centre-of-inertia frequency, pu: the inertia-weighted mean speed of the in-service
+    /// machines (the `coi_f` output); None without machines in service.
+    pub fn coi_frequency(&self) -> Option<f64> {
+        let (mut hw, mut hs) = (0.0, 0.0);
+        for m in self.machines.iter().filter(|m| m.in_service) {
+            hw += m.h * m.own(&self.x)[state::OMEGA];
+            hs += m.h;
+        }
+        (hs > 0.0).then(|| hw / hs)
+    }
+
+    /// The centre-of-inertia frequency within [`FREQUENCY_BAND`] (nothing to check without
+    /// machines in service).
+    pub fn check_frequency(&self) -> Result<(), GridError> {
+        let Some(f) = self.coi_frequency() else {
+            return Ok(());
+        };
+        let (lo, hi) = FREQUENCY_BAND;
+        if f < lo || f > hi || f.is_nan() {
+            return Err(GridError::FrequencyCollapse {
+                t: self.t,
+                f,
+                f_nom: self.case.f_nom,
+            });
+        }
+        Ok(())
     }
 
     /// Loss of synchronism: every in-service machine's rotor angle and every grid-forming slot's

@@ -1,6 +1,6 @@
 //! Serialization of a [`Grid`] (FMU states): the case as TOML text plus the evolving state.
 
-use super::events::EventState;
+use super::events::{EventState, UflsState};
 use crate::case::{Case, Event};
 use crate::grid::{DerInput, Grid, SlotLimit};
 use crate::powerflow::C64;
@@ -30,6 +30,7 @@ struct GridSnapshot {
     pcc_angle: f64,
     poc_angle: Vec<f64>,
     h_max: f64,
+    ufls: Vec<UflsState>,
 }
 
 /// `[[event]]` tables of a snapshot.
@@ -61,6 +62,7 @@ impl GridSnapshot {
             pcc_angle: g.pcc_angle,
             poc_angle: g.poc_angle.clone(),
             h_max: g.h_max,
+            ufls: g.ufls.clone(),
         })
     }
 
@@ -80,6 +82,7 @@ impl GridSnapshot {
             (g.ders.len(), self.der_angle.len(), "DER angles"),
             (g.x.len(), self.x.len(), "states"),
             (g.pocs.len(), self.poc_angle.len(), "POC angles"),
+            (g.ufls.len(), self.ufls.len(), "shedding stages"),
         ];
         for (want, got, what) in sizes {
             if want != got {
@@ -118,6 +121,7 @@ impl GridSnapshot {
         g.pcc_angle = self.pcc_angle;
         g.poc_angle = self.poc_angle;
         g.h_max = self.h_max;
+        g.ufls = self.ufls;
         g.net = None;
         Ok(g)
     }

@@ -33,7 +33,8 @@ pub(crate) struct Forming {
 /// `z² - (1 - c) z + (g_net - c)` (without the compensation `z² - z + g_net`, roots of modulus
 /// `√g_net`: 0.97 for case study I's wind). For that wind (`c` = 0.58) both roots stay within
 /// 0.8 for `g_net` from 0.3 to 1.2.
-const DELAY_COMPENSATION: f64 = 0.5;
+/// The default of the parameter `delay.c`.
+pub(crate) const DELAY_COMPENSATION: f64 = 0.5;
 
 /// Time constant of the mean angle increment (s).
 const ANGLE_MEAN_TAU: f64 = 0.02;
@@ -105,7 +106,7 @@ impl Der {
                 (bus * (i / to_rated).conj()).re
             };
             let moved = f.dtheta - f.dtheta_mean;
-            DELAY_COMPENSATION * (limited(f.theta) - limited(f.theta - moved))
+            s[self.delay_c] * (limited(f.theta) - limited(f.theta - moved))
         };
         let (p_fb, q_fb) = rt.rot.rotate(
             s[self.p] + rt.withheld.0 + compensation,

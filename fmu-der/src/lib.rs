@@ -89,6 +89,7 @@ pub struct Der {
     v_dc_max: Real,
     t_budget: Real,
     i_max: Real,
+    delay_c: Real,
     priority: Integer,
     current_tau: Real,
     vq_tau: Real,

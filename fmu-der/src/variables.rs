@@ -112,6 +112,16 @@ impl Der {
             "current limit, pu of the rated current (S_rated at 1 pu voltage)",
             1e-3,
         );
+        let delay_c = v.real(
+            Spec::parameter(
+                "delay.c",
+                crate::forming::DELAY_COMPENSATION,
+                "",
+                "grid-forming: share of the change its own last angle move makes in its (limited) power that the controls add to the measured power, which shows the angle sent one communication step earlier (docs/control.md §7); 0 = off, for a host that answers the angle within the step",
+            )
+            .range(0.0, 1.0)
+            .tunable(),
+        );
         let priority = v.integer(
             Spec::parameter(
                 "limit.priority",
@@ -246,6 +256,7 @@ impl Der {
             v_dc_max,
             t_budget,
             i_max,
+            delay_c,
             priority,
             current_tau,
             vq_tau,

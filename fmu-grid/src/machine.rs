@@ -7,7 +7,7 @@
 //!
 //! The network sees every machine as an EMF behind its stator reactances (x'd, x'q for the
 //! two-axis and classical models; x''d, x''q for the sub-transient model): see
-//! [`MachineRt::emf`].
+//! `MachineRt::emf`.
 
 use crate::error::GridError;
 use crate::error::{check_range, nonneg, pos, CaseError};

@@ -116,7 +116,7 @@ impl Der {
             Spec::parameter(
                 "delay.c",
                 crate::forming::DELAY_COMPENSATION,
-                "",
+                "1",
                 "grid-forming: share of the change its own last angle move makes in its (limited) power that the controls add to the measured power, which shows the angle sent one communication step earlier (docs/control.md §7); 0 = off, for a host that answers the angle within the step",
             )
             .range(0.0, 1.0)

@@ -17,7 +17,8 @@ def path_of(unit):
 
 
 # Limits lifted for a unit driven open loop (the bus does not answer its angle).
-OPEN_LOOP = {"I_max": 1e9, "dc.t_budget": 1e-9, "E_max": 1e9}
+# Open loop: limits lifted, and no delay compensation (the bus does not answer the angle).
+OPEN_LOOP = {"I_max": 1e9, "dc.t_budget": 1e-9, "E_max": 1e9, "delay.c": 0.0}
 
 
 class Unit(Slave):

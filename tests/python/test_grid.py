@@ -90,7 +90,8 @@ def test_load_step_on_ieee9_through_fmpy():
     t, f = result["time"], result["coi.f"]
     assert np.all(f[t < 1.0 - 1e-9] == 1.0)
     i = int(np.argmin(f))
-    assert abs(f[i] - 0.99409) < 2e-4, f[i]
+    # the paper's machines: 0.99755 in the library (grid-model's load_step example)
+    assert abs(f[i] - 0.99755) < 2e-4, f[i]
     assert 3.0 < t[i] < 4.0, t[i]
     after = (t > 1.0 + 1e-9) & (t < 1.1 + 1e-9)
     rocof = (f[after][-1] - 1.0) / 0.1 * 50.0  # Hz/s over the first 100 ms

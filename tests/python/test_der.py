@@ -260,7 +260,8 @@ def injection(e, theta, v, phi, r, x):
 
 @pytest.mark.parametrize("unit", ["default", "wind", "bess"])
 def test_grid_forming_unit_on_an_infinite_bus_starts_flat_and_tracks_q(unit):
-    u = Unit(unit, name=f"bus-{unit}")
+    # The bus answers E∠θ within the step (no exchange delay): no delay compensation (delay.c).
+    u = Unit(unit, {"delay.c": 0.0}, name=f"bus-{unit}")
     p0, q0, s_rated, r_f, x_f, mu_q = u.get("p", "q", "S_rated", "R_f", "X_f", "mu_q")
     r, x = r_f * S_BASE / s_rated, x_f * S_BASE / s_rated
     h, v_bus = 1e-3, 1.0

@@ -93,8 +93,14 @@ impl Der {
                 Complex::from_polar(1.0, f.theta)
             };
             let budget = rt.dc.ac_budget();
+            let r_v = self.virtual_resistance(s);
             let limited = |theta: f64| {
-                let wanted = (Complex::from_polar(s[self.e], theta) - bus) / z;
+                let source = if r_v == 0.0 {
+                    Complex::from_polar(s[self.e], theta)
+                } else {
+                    behind_virtual(Complex::from_polar(f.e, theta), bus, z, r_v)
+                };
+                let wanted = (source - bus) / z;
                 let i = limits::saturate_forming(
                     wanted * to_rated,
                     u,
@@ -140,13 +146,28 @@ impl Der {
         // dc link's budget (enforced in the network solution, `i_limit`, `p_min`,
         // `p_max`). What the limits hold back, estimated at the measured bus voltage,
         // is added to the measurements the controls see.
+        // Behind the virtual resistance, the output is the divider between the internal
+        // voltage and the bus (the identity at vi.r = 0).
         let e_cap = s[self.e_max] * rt.dc.v_dc();
-        let modulation = f.e > e_cap;
-        let e_out = f.e.min(e_cap);
         let (r, x) = self.slot_impedance(s);
         let z = Complex::new(r, x);
         let bus = Complex::from_polar(v, v_angle);
-        let wanted = (Complex::from_polar(e_out, f.theta) - bus) / z;
+        let internal = Complex::from_polar(f.e, f.theta);
+        let r_v = self.virtual_resistance(s);
+        let source = if r_v == 0.0 {
+            internal
+        } else {
+            behind_virtual(internal, bus, z, r_v)
+        };
+        let modulation = source.norm() > e_cap;
+        let e_out = source.norm().min(e_cap);
+        // Its angle, continuous with the internal one.
+        let theta_out = if r_v == 0.0 {
+            f.theta
+        } else {
+            f.theta + (source * Complex::from_polar(1.0, -f.theta)).arg()
+        };
+        let wanted = (Complex::from_polar(e_out, theta_out) - bus) / z;
         let u = if v > limits::V_FLOOR {
             bus / v
         } else {
@@ -167,7 +188,7 @@ impl Der {
             (0.0, 0.0)
         };
         s[self.e] = e_out;
-        s[self.theta] = f.theta;
+        s[self.theta] = theta_out;
         let request = (wanted * to_rated).norm() / i_max;
         Ok(Outcome {
             current_limit: lim.current_limit,
@@ -176,4 +197,15 @@ impl Der {
             modulation,
         })
     }
+}
+
+/// The output voltage of a source `internal` behind the lossless virtual resistance `r_v` and
+/// the slot impedance `z` into `bus`: the current is `(internal - bus)/(z + r_v)`.
+fn behind_virtual(
+    internal: Complex<f64>,
+    bus: Complex<f64>,
+    z: Complex<f64>,
+    r_v: f64,
+) -> Complex<f64> {
+    (internal * z + bus * r_v) / (z + r_v)
 }

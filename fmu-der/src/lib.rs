@@ -90,6 +90,7 @@ pub struct Der {
     t_budget: Real,
     i_max: Real,
     delay_c: Real,
+    vi_r: Real,
     priority: Integer,
     current_tau: Real,
     vq_tau: Real,

@@ -132,8 +132,18 @@ impl Der {
         let (p, q, v) = (s[self.p], s[self.q], s[self.v]);
         // Below `startup.v_sync` the unit waits for the voltage (a start from zero voltage).
         let waiting = v < s[self.v_sync];
+        // A grid-forming unit's controls set the voltage behind its virtual resistance too.
+        let r_v = match mode {
+            Mode::GridForming => self.virtual_resistance(s),
+            Mode::GridFollowing => 0.0,
+        };
         let (e0, theta0) = if waiting {
             (v, s[self.v_angle])
+        } else {
+            internal_voltage(p, q, v, s[self.v_angle], r + r_v, x)
+        };
+        let (e_out, theta_out) = if waiting || r_v == 0.0 {
+            (e0, theta0)
         } else {
             internal_voltage(p, q, v, s[self.v_angle], r, x)
         };
@@ -179,10 +189,10 @@ impl Der {
             Channel::Following(_) => {}
         }
         s[self.theta] = match &rt.channel {
-            Channel::Forming(_) => theta0,
+            Channel::Forming(_) => theta_out,
             Channel::Following(_) => s[self.v_angle],
         };
-        s[self.e] = e0;
+        s[self.e] = e_out;
         s[self.df] = 0.0;
         s[self.p_ref] = if waiting { 0.0 } else { p };
         s[self.p_set] = s[self.p_ref];
@@ -236,6 +246,11 @@ impl Der {
     pub(crate) fn slot_impedance(&self, s: &Store) -> (f64, f64) {
         let zbase = s[self.s_base] / s[self.s_rated];
         (s[self.r_f] * zbase, s[self.x_f] * zbase)
+    }
+
+    /// A grid-forming unit's virtual resistance `vi.r`, pu on the system base.
+    pub(crate) fn virtual_resistance(&self, s: &Store) -> f64 {
+        s[self.vi_r] * s[self.s_base] / s[self.s_rated]
     }
 
     /// The power the converter's ac side draws from its dc link, pu on S_rated: the measured

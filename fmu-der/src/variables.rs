@@ -122,6 +122,15 @@ impl Der {
             .range(0.0, 1.0)
             .tunable(),
         );
+        let vi_r = v.real(
+            Spec::parameter(
+                "vi.r",
+                0.0,
+                "pu",
+                "grid-forming: virtual resistance on S_rated between the internal voltage the controls set and the converter's output, lossless (as the EMT controller's vi.r); the output E∠θ is the divider between them at the measured bus voltage",
+            )
+            .min(0.0),
+        );
         let priority = v.integer(
             Spec::parameter(
                 "limit.priority",
@@ -257,6 +266,7 @@ impl Der {
             t_budget,
             i_max,
             delay_c,
+            vi_r,
             priority,
             current_tau,
             vq_tau,

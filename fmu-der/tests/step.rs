@@ -437,3 +437,71 @@ fn subnormal_t_des_parameters_are_refused_by_name() {
         assert_eq!(h.phase(), Phase::Error, "{name}");
     }
 }
+
+/// `p + jq` that `E∠θ` injects through `z` into the bus `V∠0`.
+fn injection(e: f64, theta: f64, v: f64, z: dvpp_control::Complex<f64>) -> (f64, f64) {
+    let bus = dvpp_control::Complex::new(v, 0.0);
+    let s = bus * ((dvpp_control::Complex::from_polar(e, theta) - bus) / z).conj();
+    (s.re, s.im)
+}
+
+#[test]
+fn a_virtual_resistance_acts_as_a_lossless_resistance_in_series_with_the_slot() {
+    // Two units on an infinite bus through the exchange (their E∠θ answered within the step):
+    // one with vi.r = 0.3 behind a slot 0.01 + j0.1, one without it behind 0.31 + j0.1. The
+    // same currents flow; only the second loses power in its slot. A 0.1 % voltage dip at 0.5 s.
+    // The q integral gain as the EMT controller's (0.5/s): at the phasor default of 5/s, q's
+    // loop through a mostly resistive output impedance is unstable.
+    let s_base_over_rated = 100.0 / 60.0;
+    let run = |vi_r: f64, r_f: f64| {
+        let mut h = unit(&[
+            ("S_rated", 60.0),
+            ("R_f", r_f),
+            ("X_f", 0.1),
+            ("vi.r", vi_r),
+            ("qpi.ki", 0.5),
+        ]);
+        let z = dvpp_control::Complex::new(r_f, 0.1) * s_base_over_rated;
+        let (p0, q0) = (h.get("p"), h.get("q"));
+        let mut v = h.get("v");
+        let mut trace = Vec::new();
+        for k in 0..3000 {
+            if k == 500 {
+                v *= 0.999;
+            }
+            let (p, q) = injection(h.get("E"), h.get("theta"), v, z);
+            if k == 0 {
+                close(p, p0, 1e-12, "p at the start");
+                close(q, q0, 1e-12, "q at the start");
+            }
+            h.set("p", p);
+            h.set("q", q);
+            h.set("v", v);
+            h.step(DT);
+            trace.push((p, q, h.get("p_dc")));
+        }
+        trace
+    };
+    let virtual_r = run(0.3, 0.01);
+    let real_r = run(0.0, 0.31);
+    let q_change = (real_r[2999].1 - real_r[0].1).abs();
+    assert!(q_change > 1e-2, "the dip moves q by {q_change}");
+    // The divider takes the bus voltage one step old: at the dip the two differ for two steps.
+    let worst = virtual_r
+        .iter()
+        .zip(&real_r)
+        .enumerate()
+        .filter(|(k, _)| !(500..502).contains(k))
+        .map(|(_, (a, b))| (a.0 - b.0).abs().max((a.1 - b.1).abs()))
+        .fold(0.0, f64::max);
+    assert!(worst < 1e-3 * q_change, "p, q differ by up to {worst:.3e}");
+    let (a, b) = (virtual_r[2999], real_r[2999]);
+    // The dc side: the slot's loss r i² (0.5 pu on S_base) with the real resistance only.
+    let i2 = (a.0 * a.0 + a.1 * a.1) / (0.999f64 * 0.999);
+    close(
+        b.2 - a.2,
+        0.3 * s_base_over_rated * i2,
+        1e-5,
+        "p_dc difference = r i²",
+    );
+}

@@ -158,11 +158,9 @@ fn emt_thevenin_gives_the_frequency_and_powers_of_its_phasor_twin() {
         );
         // Where each unit settles, within 5 % of the phasor twin's peak change.
         assert!((p_emt[n] - p_ph[n]).abs() < 0.05 * peak, "unit {k}");
-        // The trajectories: measured 1.98 % (wind), 2.46 % (PV), 6.65 % (BESS: its swing
-        // against the Thevenin machine is damped at EMT level, docs/emt.md §10).
-        let bound = [0.03, 0.035, 0.08][k - 1];
+        // The trajectories within 5 % NRMSE: measured 1.82 % (wind), 1.77 % (PV), 1.23 % (BESS).
         let e = nrmse(&p_emt, &p_ph);
-        assert!(e < bound, "unit {k}: dp NRMSE {:.2} %", e * 100.0);
+        assert!(e < 0.05, "unit {k}: dp NRMSE {:.2} %", e * 100.0);
         let name = ["wind", "PV", "BESS"][k - 1];
         p_panel = p_panel
             .series(

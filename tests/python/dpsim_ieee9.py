@@ -1,18 +1,24 @@
 """The case file's IEEE nine-bus system in DPsim's three-phase EMT domain: power flow, EMT start, flat-start check.
 
 Built from fmu-grid/cases/ieee9.toml (read with tomllib, nothing typed twice), in SI units at each
-bus's base_kv: lines as PiLines (r, x, b on base_mva), transformers as ideal ratio (HV side end 1)
-with the series reactance referred to the HV side, constant-impedance loads (as in our grid
+bus's base_kv: lines as PiLines (r, x, b on base_mva), transformers as an ideal ratio (HV side end
+1) with the series impedance referred to the HV side, constant-impedance loads (as in our grid
 model: P + jQ in the power flow, then an R || L RXLoad of that power at the power-flow voltage), the
 machines as 6th-order VBR synchronous generators (SynchronGenerator6bOrderVBR) with their data on
-the machine rating. DPsim's 6th-order VBR model has no stator resistance (ra is not modelled) and
-takes L0 = x_l. No exciter, stabilizer or governor (constant field voltage and mechanical torque).
+the machine rating. DPsim's 6th-order VBR model takes no stator resistance (ra is not modelled)
+and L0 = x_l here. Controls (add_controls; all by default): the ST1A exciter as DPsim's
+ExciterStatic, the PSS1A on the speed, the reheat steam governor and turbine.
 
 Power flow: DPsim's NRP solver on an sp.ph1 copy (slack at the slack bus, PV at the others with the
-machines' p_mw). EMT: every node and component initialized from the power flow, the generators from
-their power-flow power and terminal voltage; 50 µs steps, no event.
+machines' p_mw). EMT: every node and component initialized from the power flow, the generators
+(and their controls) from their power-flow power and terminal voltage; 50 µs steps, no event.
+Two DPsim details would break the flat start and are undone in build: the transformers' terminal
+snubbers (0.1 % of the rated power as load on each side: the transformers get a tiny rated
+power) and the PiLine's default 1e-6 S shunt conductance for G = 0. The trapezoidal rule's
+reactances, off by (ωh)²/12 at f_nom, make the machines drift together by 1e-4 Hz over 2 s at
+50 µs (growing as h²); the network's L and C are pre-warped (warp) to remove that.
 
-    python tests/python/dpsim_ieee9.py [--end 2.0]
+    python tests/python/dpsim_ieee9.py [--end 2.0] [--controls exciter,pss,governor|none]
 """
 import argparse
 import math
@@ -28,6 +34,7 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 CASE = ROOT / "fmu-grid" / "cases" / "ieee9.toml"
 H_STEP = 50e-6
 S_SNUB = 1e3  # VA, the transformers' 'rated power' (see build): ~1 W of snubber load each
+CONTROLS = ("exciter", "pss", "governor")
 G_TINY = 1e-12  # S, a line's shunt conductance (0.05 W at 230 kV)
 
 
@@ -129,6 +136,50 @@ def build(case, dpsimpy, domain, v_load=None, k=1.0):
     return nodes, comps, gens
 
 
+def add_controls(g, m, dpsimpy, h, parts=CONTROLS):
+    """DPsim's signal components for the machine's [machine.exciter] (st1a: ExciterStatic, see
+    below; the limits vr_min, vr_max taken as constants, not times V_t; DPsim's ExciterST1Simp
+    is not used: its output K_a (V_r - V_ref) feeds the voltage back with the wrong sign and
+    the machines run away within 2 s), [machine.pss] (pss1a:
+    PSS1A on the speed, Kw = ks) and [machine.governor] (tgov_reheat: SteamTurbineGovernor
+    1/R into a first-order lag T3 = t_g, limits 0..p_max; SteamTurbine with F_hp = f_hp after
+    T_ch and F_ip = 1 - f_hp after T_rh, no LP stage)."""
+    sig, log = dpsimpy.signal, dpsimpy.LogLevel.off
+    exc = m.get("exciter")
+    if "exciter" in parts and exc is not None:
+        if exc["type"] != "st1a" or exc.get("kf", 0.0) or exc.get("ta", 0.0) or exc.get("tc", 0.0) != exc.get("tb", 0.0):
+            raise NotImplementedError(f"exciter {exc}")
+        # ExciterStatic: T_r, then a lead-lag (1 + sT_a)/(1 + sT_b), then K_a/(1 + sT_e) within
+        # MinEfd..MaxEfd. T_a = T_b (T_C = T_B: no transient gain reduction); T_e = h, which in
+        # its forward-Euler step is the gain K_a delayed by one step (ST1A's T_A = 0).
+        ep = sig.ExciterStaticParameters()
+        ep.Tr, ep.Ka, ep.Ta, ep.Tb, ep.Te, ep.Kbc = exc["tr"], exc["ka"], 1.0, 1.0, h, 0.0
+        ep.MaxEfd, ep.MinEfd = exc.get("vr_max", 1e3), exc.get("vr_min", -1e3)
+        g.add_exciter(sig.ExciterStatic(f"{m['name']}_exc", log), ep)
+        pss = m.get("pss")
+        if "pss" in parts and pss is not None:
+            if pss["type"] != "pss1a":
+                raise NotImplementedError(f"stabilizer {pss['type']!r}")
+            pp = sig.PSS1AParameters()
+            pp.Kp, pp.Kv, pp.Kw = 0.0, 0.0, pss["ks"]
+            pp.T1, pp.T2, pp.T3, pp.T4, pp.Tw = pss["t1"], pss["t2"], pss["t3"], pss["t4"], pss["tw"]
+            pp.Vs_max, pp.Vs_min = pss.get("vs_max", 1e3), pss.get("vs_min", -1e3)
+            g.add_pss(sig.PSS1A(f"{m['name']}_pss", log), pp)
+    gov = m.get("governor")
+    if "governor" in parts and gov is not None:
+        if gov["type"] != "tgov_reheat":
+            raise NotImplementedError(f"governor {gov['type']!r}")
+        gp = sig.SteamGovernorParameters()
+        gp.R, gp.T1, gp.T2, gp.T3 = gov["r"], 0.0, 0.0, gov["t_g"]
+        gp.dPmax, gp.dPmin, gp.Pmax, gp.Pmin = 1e3, -1e3, gov.get("p_max", 1.0), gov.get("p_min", 0.0)
+        gp.OmRef, gp.Kbc = 1.0, 0.0
+        tp = sig.SteamTurbineParameters()
+        tp.Fhp, tp.Fip, tp.Flp = gov["f_hp"], 1.0 - gov["f_hp"], 0.0
+        tp.Tch, tp.Trh, tp.Tco = gov["t_ch"], gov["t_rh"], 0.5  # Tco: the absent LP stage's lag
+        g.add_governor_and_turbine(sig.SteamTurbineGovernor(f"{m['name']}_gov", log), gp,
+                                   sig.SteamTurbine(f"{m['name']}_turb", log), tp)
+
+
 def power_flow(case, dpsimpy):
     """DPsim's NRP power flow of the case: (system, {bus: complex voltage V}, {machine: S in VA}).
     As in our grid model, the power flow takes the loads as P + jQ; the dynamic model then holds
@@ -153,7 +204,7 @@ def _power_flow_once(case, dpsimpy):
     return system, {b: complex(n.attr("v").get()[0, 0]) for b, n in nodes.items()}
 
 
-def run(case=None, end=2.0, h=H_STEP, prewarp=True):
+def run(case=None, end=2.0, h=H_STEP, prewarp=True, controls=CONTROLS):
     """Power flow, EMT start from it, `end` seconds at step h, no event. Returns a dict: the
     power-flow machine powers (pu on base_mva), bus voltages (pu), and per machine the speed trace
     (pu) and the largest |Δf| (Hz) over the run, and the wall time."""
@@ -174,6 +225,7 @@ def run(case=None, end=2.0, h=H_STEP, prewarp=True):
             for m in case["machine"]:
                 s = s_pf[m["name"]]
                 gens[m["name"]].set_initial_values(s, s.real, v_pf[m["bus"]])
+                add_controls(gens[m["name"]], m, dpsimpy, h, controls)
             sim = dpsimpy.Simulation("ieee9_emt", dpsimpy.LogLevel.off)
             sim.set_system(system)
             sim.set_domain(dpsimpy.Domain.EMT)
@@ -210,8 +262,12 @@ def run(case=None, end=2.0, h=H_STEP, prewarp=True):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--end", type=float, default=2.0)
+    parser.add_argument("--controls", default=",".join(CONTROLS),
+                        help="comma-separated subset of exciter,pss,governor, or none")
     args = parser.parse_args()
-    rec = run(end=args.end)
+    controls = tuple(c for c in args.controls.split(",") if c and c != "none")
+    rec = run(end=args.end, controls=controls)
+    print(f"controls: {', '.join(controls) or 'none'}")
     print("power flow (DPsim NRP), bus voltages:")
     for b in sorted(rec["v_pf"]):
         print(f"  bus {b}: {rec['v_pf'][b]:.5f} pu at {rec['a_pf'][b]:8.4f} deg")

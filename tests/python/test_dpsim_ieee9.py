@@ -2,10 +2,10 @@
 
 1. DPsim's power flow of fmu-grid/cases/ieee9.toml gives the machines' powers of our own power
    flow (docs/validation.md: 1.88419 / 0.81500 / 0.48000 pu on 100 MVA) within 1e-3 pu;
-2. the EMT system (6th-order VBR machines, no controls), initialized from that power flow, starts
-   flat: no machine's speed leaves f_nom by 1e-4 Hz over 2 s at 50 µs with no event (the
-   network's reactances pre-warped to the trapezoidal rule's at f_nom); without the pre-warp the
-   drift, 1.0e-4 Hz, grows as h² (see the script).
+2. the EMT system (6th-order VBR machines, with and without the exciters, stabilizers and
+   governors), initialized from that power flow, starts flat: no machine's speed leaves f_nom by
+   1e-4 Hz over 2 s at 50 µs with no event (the network's reactances pre-warped to the
+   trapezoidal rule's at f_nom; without the pre-warp the drift, 1.0e-4 Hz, grows as h²).
 """
 import pytest
 
@@ -19,9 +19,9 @@ OUR_P = {"SG1": 1.88419, "SG2": 0.81500, "SG3": 0.48000}  # pu on 100 MVA, docs/
 END = 2.0
 
 
-@pytest.fixture(scope="module")
-def rec():
-    return dpsim_ieee9.run(end=END)
+@pytest.fixture(scope="module", params=[dpsim_ieee9.CONTROLS, ()], ids=["controls", "no-controls"])
+def rec(request):
+    return dpsim_ieee9.run(end=END, controls=request.param)
 
 
 def test_power_flow_matches_our_case(rec):

@@ -15,8 +15,10 @@ machines' p_mw). EMT: every node and component initialized from the power flow, 
 Two DPsim details would break the flat start and are undone in build: the transformers' terminal
 snubbers (0.1 % of the rated power as load on each side: the transformers get a tiny rated
 power) and the PiLine's default 1e-6 S shunt conductance for G = 0. The trapezoidal rule's
-reactances, off by (ωh)²/12 at f_nom, make the machines drift together by 1e-4 Hz over 2 s at
-50 µs (growing as h²); the network's L and C are pre-warped (warp) to remove that.
+reactances, off by (ωh)²/12 at f_nom, load the machines slightly more than the power flow
+does: without governors they drift together by 1.0e-4 Hz over 2 s at 50 µs (2.5e-5 at 25 µs,
+4.0e-4 at 100 µs), with them by 5e-6 Hz; the network's L and C are pre-warped (warp) to remove
+that (1e-7 Hz left, either way).
 
     python tests/python/dpsim_ieee9.py [--end 2.0] [--controls exciter,pss,governor|none]
 """

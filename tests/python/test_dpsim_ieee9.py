@@ -5,7 +5,8 @@
 2. the EMT system (6th-order VBR machines, with and without the exciters, stabilizers and
    governors), initialized from that power flow, starts flat: no machine's speed leaves f_nom by
    1e-4 Hz over 2 s at 50 µs with no event (the network's reactances pre-warped to the
-   trapezoidal rule's at f_nom; without the pre-warp the drift, 1.0e-4 Hz, grows as h²).
+   trapezoidal rule's at f_nom; without the pre-warp and the governors the common drift is
+   1.0e-4 Hz and grows as h²). Measured: ~1.2e-7 Hz in both cases, ~2 s of wall time each.
 """
 import pytest
 

@@ -64,7 +64,6 @@ def build(case, dpsimpy, domain, v_load=None, k=1.0):
     network's inductances and capacitances are scaled by k (see warp; not the machines')."""
     log = dpsimpy.LogLevel.off
     w = 2 * math.pi * case["f_nom"]
-    sb = case["base_mva"] * 1e6
     kv = {b["id"]: b["base_kv"] for b in case["bus"]}
     kind = {b["id"]: b.get("kind", "pq") for b in case["bus"]}
     vset = {b["id"]: b.get("v_set", 1.0) for b in case["bus"]}
@@ -92,11 +91,14 @@ def build(case, dpsimpy, domain, v_load=None, k=1.0):
         a, b = tr["from"], tr["to"]
         hv, lv = (a, b) if kv[a] >= kv[b] else (b, a)
         zb = _z_base(case, kv[hv])
+        if (tr.get("tap") or 1.0) != 1.0:
+            raise NotImplementedError("off-nominal taps")
         c = mod.Transformer(tr["name"], log)
-        ratio = kv[hv] / kv[lv] * (tr.get("tap") or 1.0)
+        ratio = kv[hv] / kv[lv]
         r, l = tr.get("r", 0.0) * zb, k * tr["x"] * zb / w
         # DPsim's transformer uses its rated power only to size its terminal snubbers (0.1 % of
-        # it as a resistive load on each side, not in the power flow): S_SNUB makes them vanish.
+        # it as a resistive load on each side and a small capacitor, not in the power flow; with
+        # 100 MVA they took 0.6 MW in all): S_SNUB makes them vanish.
         c.set_parameters(kv[hv] * 1e3, kv[lv] * 1e3, S_SNUB, ratio, 0.0, mat(r), mat(l))
         if domain == "sp":
             c.set_base_voltage(kv[hv] * 1e3)
@@ -121,6 +123,8 @@ def build(case, dpsimpy, domain, v_load=None, k=1.0):
         if m.get("base", "machine") != "machine" or m["model"] != "sub_transient":
             raise NotImplementedError("sub-transient machines on their own rating only")
         bus, v, s = m["bus"], kv[m["bus"]] * 1e3, m["rating_mva"] * 1e6
+        if kind[bus] not in ("slack", "pv"):
+            raise NotImplementedError(f"{m['name']} on a PQ bus")
         if domain == "sp":
             g = mod.SynchronGenerator(m["name"], log)
             bt = dpsimpy.PowerflowBusType.VD if kind[bus] == "slack" else dpsimpy.PowerflowBusType.PV

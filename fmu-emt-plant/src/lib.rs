@@ -103,6 +103,8 @@ struct UnitVars {
     v0: Option<Real>,
     m: [Real; 3],
     i_dc_ref: Real,
+    /// The source's power range `[p_min, p_max]` (S_rated).
+    p_src: [Real; 2],
     v: [Real; 3],
     i: [Real; 3],
     ig: [Real; 3],
@@ -239,6 +241,9 @@ pub struct Plant {
 }
 
 const PHASES: [&str; 3] = ["a", "b", "c"];
+/// The start of a unit's source-range inputs (pu on S_rated): far beyond any converter, so a
+/// host that does not wire them gets the lag alone.
+const SOURCE_UNBOUNDED: f64 = 1e3;
 
 fn positive(s: &Store, r: Real, name: &str) -> Result<f64, ModelError> {
     let x = s[r];
@@ -353,6 +358,21 @@ impl Plant {
             "pu",
             &format!("{who}: primary-source current command, pu of S_rated/v_dc*"),
         ));
+        let p_src = [
+            ("p_src_min", -SOURCE_UNBOUNDED, "lowest", "0 for a source that cannot absorb, -P_avail for storage"),
+            ("p_src_max", SOURCE_UNBOUNDED, "highest", "the available power P_avail"),
+        ]
+        .map(|(name, start, which, what)| {
+            v.real(Spec::input(
+                &n(name),
+                start,
+                "pu",
+                &format!(
+                    "{who}: the {which} power the primary source can deliver, on S_rated ({what}; from the \
+                     unit's controller; the start value leaves the source unbounded)"
+                ),
+            ))
+        });
         let out = |v: &mut Variables, w: String, what: String| {
             v.real(Spec::output(&n(&w), "pu", &format!("{who}: {what}")))
         };
@@ -412,6 +432,7 @@ impl Plant {
             v0,
             m,
             i_dc_ref,
+            p_src,
             v: vc,
             i,
             ig,
@@ -1060,7 +1081,8 @@ impl Model for Plant {
             let e_ac = energy(k);
             let p = &fixed.dc[k];
             let su = net.units[k].s;
-            let step = run.dc[k].step(p, s[u.i_dc_ref], e_ac / su, h);
+            let range = [s[u.p_src[0]], s[u.p_src[1]]];
+            let step = run.dc[k].step(p, s[u.i_dc_ref], e_ac / su, h, range);
             if run.dc[k].w <= 0.0 {
                 return Err(format!(
                     "unit {}: the dc link is discharged (the converter drew more than the link stores); der[{}].v_dc reached 0",

@@ -38,6 +38,7 @@ H_STEP = 50e-6
 S_SNUB = 1e3  # VA, the transformers' 'rated power' (see build): ~1 W of snubber load each
 CONTROLS = ("exciter", "pss", "governor")
 G_TINY = 1e-12  # S, a line's shunt conductance (0.05 W at 230 kV)
+R_OPEN = 1e12  # ohm, an open switch
 
 
 def load_case(path=CASE):
@@ -210,10 +211,13 @@ def _power_flow_once(case, dpsimpy):
     return system, {b: complex(n.attr("v").get()[0, 0]) for b, n in nodes.items()}
 
 
-def run(case=None, end=2.0, h=H_STEP, prewarp=True, controls=CONTROLS):
-    """Power flow, EMT start from it, `end` seconds at step h, no event. Returns a dict: the
+def run(case=None, end=2.0, h=H_STEP, prewarp=True, controls=CONTROLS, load_step=None):
+    """Power flow, EMT start from it, `end` seconds at step h. ``load_step``: None (no event) or
+    a load step as a case file gives one (bus, dp_mw, time): a resistance drawing dp_mw at the
+    bus's power-flow voltage behind a switch that closes at that time. Returns a dict: the
     power-flow machine powers (pu on base_mva), bus voltages (pu), and per machine the speed trace
-    (pu) and the largest |Δf| (Hz) over the run, and the wall time."""
+    (pu) and the largest |Δf| (Hz) over the run, the centre-of-inertia speed (H on the system
+    base), and the wall time."""
     import dpsimpy
 
     case = case or load_case()
@@ -226,6 +230,13 @@ def run(case=None, end=2.0, h=H_STEP, prewarp=True, controls=CONTROLS):
             system_pf, v_pf, s_pf = power_flow(case, dpsimpy)
             nodes, comps, gens = build(case, dpsimpy, "emt", {b: abs(x) for b, x in v_pf.items()},
                                         warp(case, h) if prewarp else 1.0)
+            switch = None
+            if load_step is not None:
+                r = abs(v_pf[load_step["bus"]]) ** 2 / (load_step["dp_mw"] * 1e6)
+                switch = dpsimpy.emt.ph3.Switch("sw_step", dpsimpy.LogLevel.off)
+                switch.set_parameters(R_OPEN * np.eye(3), r * np.eye(3), False)
+                switch.connect([nodes[load_step["bus"]], dpsimpy.emt.SimNode.gnd])
+                comps = comps + [switch]
             system = dpsimpy.SystemTopology(case["f_nom"], list(nodes.values()), comps)
             system.init_with_powerflow(system_pf, dpsimpy.Domain.EMT)
             for m in case["machine"]:
@@ -244,7 +255,10 @@ def run(case=None, end=2.0, h=H_STEP, prewarp=True, controls=CONTROLS):
             sim.start()
             for name, g in gens.items():
                 w[name][0] = g.attr("w_r").get()
+            k_step = round(load_step["time"] / h) if switch is not None else None
             for k in range(1, n + 1):
+                if k == k_step:
+                    switch.close()
                 sim.next()
                 for name, g in gens.items():
                     w[name][k] = g.attr("w_r").get()
@@ -253,7 +267,12 @@ def run(case=None, end=2.0, h=H_STEP, prewarp=True, controls=CONTROLS):
         finally:
             os.chdir(cwd)
     f = case["f_nom"]
+    weight = {m["name"]: m["h"] * (m["rating_mva"] if m.get("base", "machine") == "machine" else case["base_mva"])
+              for m in case["machine"]}
+    coi = sum(weight[k] * x for k, x in w.items()) / sum(weight.values())
     return {
+        "coi": coi,
+        "h": h,
         "p_pf": {k: s.real / sb for k, s in s_pf.items()},
         "q_pf": {k: s.imag / sb for k, s in s_pf.items()},
         "v_pf": {b: abs(x) / kv[b] for b, x in v_pf.items()},

@@ -17,18 +17,25 @@ the plant's pcc.f_filter_t) giving the operator's pcc.f.
 - EMT: all nodes from the power flow, the converters' own nodes and currents from their per-unit
   steady state at bus 2's power-flow voltage; the machines (with exciter, PSS, governor) as in
   dpsim_ieee9.run; the operator's inputs start at that initial point.
-- Case I's event: the case's load step (dp_mw at bus 2, constant resistance drawing dp_mw at
-  bus 2's power-flow voltage) behind a switch closing at its time.
+- The dc links: DPsim's circuits end at the converters' ac side, so each unit's dc side is
+  stepped here (DcLink) as our EMT plant FMU steps it: the primary source's lag toward the FMU's
+  i_dc_ref within the range it outputs (p_src_min, p_src_max: its availability), the link as an
+  energy store drawn on by the converter's ac energy; the FMU measures its v_dc and the
+  converter's voltage is the modulation times that v_dc.
+- The units' settings: with an event, the start values of the phasor twin's scenario file
+  (studies/scenarios/phasor_case1_<event>.toml: the virtual resistance and q integral gain the
+  EMT controllers share with it, the dispatch, the cloud) over the bundle's (unit_start).
+- Case I's events (``event``): "load", the case's load step (dp_mw at bus 2, a constant
+  resistance drawing dp_mw at bus 2's power-flow voltage behind a switch closing at its time);
+  "cloud", the PV unit's availability step (its avail.* start values).
 
 Measured (50 µs; DVPP_DIST pointing at the bundles): with no event, 2 s, max |Δf| SG1 3.4e-7, SG3
-4.7e-7, PCC meter 4.1e-6 Hz, max |p - p0| wind 5.0e-5, PV 7.5e-5, BESS 3.4e-5 pu, 6 s of wall
-time. The units start at our master's phasor case1_load operating point (q 0.00072, 0.00114,
-0.00094 pu). With the event, 5 s (16-19 s of wall time): PCC Δf nadir -0.1352 Hz at 2.30 s (our
-master's phasor case1_load run: -0.1353 Hz at 2.22 s; NRMSE of the two PCC Δf traces 3.9 % of its
-peak); PCC Δf against the operator's ref.df: NRMSE 8.6 % of the peak |ref.df| (our master's
-run: 8.4 %); no converter limit, no warnings.
+4.7e-7, PCC meter 4.1e-6 Hz, max |p - p0| wind 5.0e-5, PV 7.5e-5, BESS 3.4e-5 pu. The units start
+at our master's phasor case1_load operating point (q 0.00072, 0.00114, 0.00094 pu). The events'
+figures against the operator's desired response and our master's phasor runs:
+tests/python/emt_case1.py (`cargo xtask emt-case1`) and docs/emt.md §12.
 
-    python tests/python/dpsim_ieee9_dvpp.py [--end 2] [--event]
+    python tests/python/dpsim_ieee9_dvpp.py [--end 2] [--event load|cloud]
 """
 import argparse
 import cmath
@@ -104,7 +111,7 @@ class Grid:
             self.converters.append(host.Converter(net, name, s_rated * 1e6, f, n_pcc, v, i_g))
             self.scale.append(s_rated / s_base)
         self.switches = []
-        if event:
+        if event == "load":
             ev = next(e for e in case["event"] if e["type"] == "load_step")
             if ev.get("dq_mvar", 0.0):
                 raise NotImplementedError("a reactive load step")
@@ -157,22 +164,92 @@ class Grid:
         self.net.cleanup()
 
 
-def run(t_end, event=False, h=H_STEP, root=None, case=None):
-    """One coupled run; returns the recorded signals: ``t``, ``f`` (the PCC meter's pcc.f, pu),
-    ``w`` (machine speeds, pu, by name), ``p``/``q`` (units x steps, pu on S_base), ``ref_df``
-    (the operator's ref.df), the units' flags and warnings, the wall time of the coupled loop."""
+class DcLink:
+    """A unit's dc side as our EMT plant FMU steps it (fmu-emt-plant/src/dc.rs): the primary
+    source's current through its lag ``tau`` toward the controller's command (exact for a held
+    command), its power within the range the controller outputs (p_src_min, p_src_max: cut at
+    once to a range that fell, held from the instant the lag reaches a bound), the link as the
+    energy store ``W = C_dc v_dc²/2`` (pu·s on S_rated) balanced each step against the source's
+    energy, the conductance's loss and the converter's ac energy ``e_ac``. Starts at
+    ``v_dc = 1`` with the source covering ``p_conv`` and the loss."""
+
+    V_FLOOR = 0.05  # pu: below it the source's current range is taken at it
+
+    def __init__(self, c, g, tau, p_conv):
+        self.c, self.g, self.tau = c, g, tau
+        self.i_src, self.w = p_conv + g, 0.5 * c
+        self.source = self.loss = self.ac = 0.0  # the account since t = 0, pu·s
+
+    @property
+    def v(self):
+        return math.sqrt(2.0 * max(self.w, 0.0) / self.c)
+
+    def _charge(self, i0, i_ref, t):
+        return i_ref * t - (i0 - i_ref) * self.tau * math.expm1(-t / self.tau)
+
+    def step(self, i_ref, e_ac, h, p_min, p_max):
+        v_range = max(self.v, self.V_FLOOR)
+        lo, hi = p_min / v_range, max(p_min, p_max) / v_range
+        i0 = min(max(self.i_src, lo), hi)
+        bound = hi if i_ref > hi else lo if i_ref < lo else None
+        t_b = self.tau * math.log((i0 - i_ref) / (bound - i_ref)) if bound is not None else math.inf
+        if t_b < h:
+            charge, i1 = self._charge(i0, i_ref, t_b) + bound * (h - t_b), bound
+        else:
+            charge, i1 = self._charge(i0, i_ref, h), i_ref + (i0 - i_ref) * math.exp(-h / self.tau)
+        v0 = self.v
+        v1 = math.sqrt(2.0 * max(self.w + v0 * charge - self.g * v0 * v0 * h - e_ac, 0.0) / self.c)
+        source, loss = 0.5 * (v0 + v1) * charge, self.g * h * 0.5 * (v0 * v0 + v1 * v1)
+        self.w += source - loss - e_ac
+        self.i_src = i1
+        self.source, self.loss, self.ac = self.source + source, self.loss + loss, self.ac + e_ac
+
+
+EVENTS = ("load", "cloud")
+SCENARIOS = ROOT / "studies" / "scenarios"
+
+
+def unit_start(event, twin=True):
+    """The units' start values of case I's ``event`` as our phasor scenario sets them (by unit
+    name): phasor_case1_<event>.toml (the twin: the outer-loop settings the EMT controllers
+    share with it) or case1_<event>.toml. Case I in DPsim applies the twin's to the EMT
+    controller FMUs, so both settings run one configuration from one file (the cloud is its
+    PV's avail.* values)."""
+    import tomllib
+
+    with open(SCENARIOS / f"{'phasor_' if twin else ''}case1_{event}.toml", "rb") as f:
+        sc = tomllib.load(f)
+    return {d["name"]: dict(d.get("start", {})) for d in sc["der"]}
+
+
+def run(t_end, event=None, h=H_STEP, root=None, case=None, start=None):
+    """One coupled run; ``event``: None, "load" (the case's load step) or "cloud" (the PV's
+    availability step, its avail.* values from ``start``); ``start``: the units' start values by
+    name over the bundle's (by default, with an event, unit_start(event)). Returns the recorded signals: ``t``, ``f`` (the PCC meter's pcc.f, pu),
+    ``v`` (|v_pcc|), ``w`` (machine speeds, pu, by name), ``coi`` (their centre of inertia, H on
+    the system base), ``p``/``q`` (units x steps, pu on S_base), ``v_dc`` (units x steps),
+    ``mu`` (the operator's dc gains by name), ``ref_df`` (the operator's ref.df), the units' flags
+    and warnings, the dc links' energy accounts, the wall time of the coupled loop and where it
+    went (``timing``: DPsim's solve, the unit FMUs' calls, the operator FMU's, the rest)."""
     import dpsimpy
     import fmpy.fmi2  # noqa: F401
 
+    if event not in (None, *EVENTS):
+        raise ValueError(f"event {event!r}: one of {EVENTS} or None")
     root = root or bundle()
     case = case or load_case()
     plant = Plant(root / "plant.fmu")  # only its pcc.f_filter_t (the meter's lag)
-    units = []
+    extra = start if start is not None else unit_start(event) if event else {}
+    if event == "cloud" and not any(x.get("avail.dP", 0.0) for x in extra.values()):
+        raise ValueError("a cloud needs a unit's avail.dP (and avail.t_step) in the start values")
+    units, dc_data = [], []
     for name in UNITS:
         probe = Slave(root / f"{name}.fmu", f"probe-{name}")
-        info = dict(zip(host.UNIT_INFO, probe.get(*host.UNIT_INFO)))
+        names = (*host.UNIT_INFO, "C_dc", "G_dc", "tau_dc")
+        info = dict(zip(names, probe.get(*names)))
         probe.free()
         units.append((name, info["S_rated"], {k: info[k] for k in host.FILTER}))
+        dc_data.append((info["C_dc"], info["G_dc"], info["tau_dc"]))
     grid = Grid(case, dpsimpy, units, h, event)
     v, s = grid.pcc()
     # The operator at this initial point (its other start values the bundle's).
@@ -186,13 +263,18 @@ def run(t_end, event=False, h=H_STEP, root=None, case=None):
     mu_split = np.cumsum([len(names) for names in mu_names])[:-1]
     vr_ref_df = operator.vr("ref.df")
     mu = np.split(np.array(operator.fmu.getReal(mu_vr)), mu_split)
-    ders = []
+    ders, links = [], []
     for k, (name, _, _) in enumerate(units):
-        der = DerEmt(dict(zip(mu_names[k], mu[k])), grid.converters[k].measure(), name=name,
+        c = grid.converters[k]
+        der = DerEmt({**dict(zip(mu_names[k], mu[k])), **extra.get(name, {})}, c.measure(), name=name,
                      path=root / f"{name}.fmu")
         der.vr_in = der.vr_in + [der.vr(n) for n in mu_names[k]]
-        der.vr_out = der.vr_out + [der.vr(n) for n in DER_TO_OPERATOR]
+        der.vr_out = der.vr_out + [der.vr(n) for n in ("i_dc_ref", "p_src_min", "p_src_max", *DER_TO_OPERATOR)]
         ders.append(der)
+        # The converter's power at t = 0 from the circuit's state (pu on S_rated).
+        i_f = c.measure()[3:6]
+        p_conv = (2.0 / 3.0) * float(np.dot(c.last, i_f))
+        links.append(DcLink(*dc_data[k], p_conv))
     op_in = [operator.vr(f"der[{k + 1}].{n}") for k in range(len(UNITS)) for n in ("P_avail", "p_set", "p", "q")]
     op_in += [operator.vr(f"pcc.{n}") for n in ("p", "q", "f", "v")]
     volts_per_m = []
@@ -202,21 +284,37 @@ def run(t_end, event=False, h=H_STEP, root=None, case=None):
         c.last = np.array(der.fmu.getReal(der.vr_out[:3])) * vpm
     meter = PccMeter(cmath.phase(v), plant.f_filter_t, h)
     switches = sorted(((round(t_on / h), sw) for t_on, sw in grid.switches), key=lambda x: x[0])
+    weights = {m["name"]: m["h"] * (m["rating_mva"] if m.get("base", "machine") == "machine" else case["base_mva"])
+               for m in case["machine"]}
     n = round(t_end / h)
-    rec = {k: np.empty(n + 1) for k in ("t", "f", "v", "ref_df")}
+    rec = {k: np.empty(n + 1) for k in ("t", "f", "v", "ref_df", "coi")}
     rec["w"] = {name: np.empty(n + 1) for name in grid.w}
-    rec["p"], rec["q"] = np.empty((len(UNITS), n + 1)), np.empty((len(UNITS), n + 1))
+    rec["p"], rec["q"], rec["v_dc"] = (np.empty((len(UNITS), n + 1)) for _ in range(3))
+    rec["mu"] = {f"{u}.{m}": np.empty(n + 1) for u, names in zip(UNITS, mu_names) for m in names}
+    mu_keys = list(rec["mu"])
+
+    def sample(k, t, f, v, s, ref_df, mu_flat):
+        rec["t"][k], rec["f"][k], rec["v"][k], rec["ref_df"][k] = t, f, abs(v), ref_df
+        for name, a in grid.w.items():
+            rec["w"][name][k] = a.get()
+        rec["coi"][k] = sum(weights[x] * rec["w"][x][k] for x in grid.w) / sum(weights[x] for x in grid.w)
+        rec["p"][:, k], rec["q"][:, k] = [x.real for x in s], [x.imag for x in s]
+        rec["v_dc"][:, k] = [link.v for link in links]
+        for key, x in zip(mu_keys, mu_flat):
+            rec["mu"][key][k] = x
+
     f = 1.0
-    rec["t"][0], rec["f"][0], rec["v"][0] = 0.0, f, abs(v)
-    rec["ref_df"][0] = operator.fmu.getReal([vr_ref_df])[0]
-    for name, a in grid.w.items():
-        rec["w"][name][0] = a.get()
-    rec["p"][:, 0], rec["q"][:, 0] = [x.real for x in s], [x.imag for x in s]
+    sample(0, 0.0, f, v, s, operator.fmu.getReal([vr_ref_df])[0], np.concatenate(mu))
     to_operator = [der.fmu.getReal(der.vr_out[-2:]) for der in ders]
-    started = time.perf_counter()
+    clock = time.perf_counter
+    timing = dict.fromkeys(("dpsim", "units", "operator"), 0.0)
+    started = clock()
+    measured = [c.measure() for c in grid.converters]
     for k in range(n):
         t = k * h
-        outs = [der.step(t, h, [*c.measure(), *m]) for der, c, m in zip(ders, grid.converters, mu)]
+        t0 = clock()
+        outs = [der.step(t, h, [*x[:-1], link.v, *m]) for der, x, link, m in zip(ders, measured, links, mu)]
+        t1 = clock()
         values = []
         for (p_avail, p_set), x in zip(to_operator, s):
             values += [p_avail, p_set, x.real, x.imag]
@@ -224,20 +322,32 @@ def run(t_end, event=False, h=H_STEP, root=None, case=None):
         operator.fmu.setReal(op_in, values + [p_sum.real, p_sum.imag, f, abs(v)])
         operator.fmu.doStep(t, h)
         out_op = operator.fmu.getReal(mu_vr + [vr_ref_df])
+        t2 = clock()
         mu = np.split(np.array(out_op[:-1]), mu_split)
         to_operator = [out[-2:] for out in outs]
         while switches and switches[0][0] == k + 1:
             switches.pop(0)[1].close()
-        for c, out, vpm in zip(grid.converters, outs, volts_per_m):
-            c.apply([x * vpm for x in out[:3]])
+        # The converter voltage from the modulation and the link's voltage at the step's start.
+        for c, out, vpm, link in zip(grid.converters, outs, volts_per_m, links):
+            c.apply([x * vpm * link.v for x in out[:3]])
+        t3 = clock()
         t = grid.next()
+        t4 = clock()
+        # The ac energy the converter drew over the step: the applied (mid-step) voltage times
+        # the mean filter current (pu on S_rated).
+        before, measured = measured, [c.measure() for c in grid.converters]
+        for c, link, out, x0, x1 in zip(grid.converters, links, outs, before, measured):
+            applied = c.v_ref.get()[:, 0] / V_R
+            i_mean = 0.5 * (np.asarray(x0[3:6]) + np.asarray(x1[3:6]))
+            link.step(out[-5], (2.0 / 3.0) * float(np.dot(applied, i_mean)) * h, h, out[-4], out[-3])
         v, s = grid.pcc()
         f = meter.step(v)
-        rec["t"][k + 1], rec["f"][k + 1], rec["v"][k + 1], rec["ref_df"][k + 1] = t, f, abs(v), out_op[-1]
-        for name, a in grid.w.items():
-            rec["w"][name][k + 1] = a.get()
-        rec["p"][:, k + 1], rec["q"][:, k + 1] = [x.real for x in s], [x.imag for x in s]
-    wall = time.perf_counter() - started
+        sample(k + 1, t, f, v, s, out_op[-1], out_op[:-1])
+        timing["units"] += t1 - t0
+        timing["operator"] += t2 - t1
+        timing["dpsim"] += t4 - t3
+    wall = clock() - started
+    timing["rest"] = wall - sum(timing.values())
     flags = {name: der.flags() for der, name in zip(ders, UNITS)}
     warnings = [w for der in ders for w in der.warnings()] + [m for st, m in operator.messages if st >= 1]
     for der in ders:
@@ -245,9 +355,13 @@ def run(t_end, event=False, h=H_STEP, root=None, case=None):
     operator.free()
     grid.stop()
     f_nom = case["f_nom"]
-    return {**rec, "wall": wall, "h": h, "t_end": t_end, "flags": flags, "warnings": warnings,
-            "v0": grid.v0, "s0": grid.s0, "f_nom": f_nom,
-            "t_step": min((t_on for t_on, _ in grid.switches), default=None)}
+    dc = {name: {"source": link.source, "loss": link.loss, "ac": link.ac, "stored": link.w - 0.5 * link.c}
+          for name, link in zip(UNITS, links)}
+    t_event = min((t_on for t_on, _ in grid.switches), default=None)
+    if event == "cloud":
+        t_event = min(x["avail.t_step"] for x in extra.values() if x.get("avail.dP", 0.0))
+    return {**rec, "wall": wall, "timing": timing, "h": h, "t_end": t_end, "flags": flags, "warnings": warnings,
+            "v0": grid.v0, "s0": grid.s0, "f_nom": f_nom, "dc": dc, "event": event, "t_step": t_event}
 
 
 def flat_figures(rec, k_end=None):
@@ -261,31 +375,43 @@ def flat_figures(rec, k_end=None):
     return df, dp
 
 
-def event_figures(rec):
+def window(rec, seconds=None):
+    """The samples from the event on (all after t = 0 without one), ``seconds`` long or to the end."""
+    t0 = rec["t_step"] or 0.0
+    t1 = rec["t"][-1] if seconds is None else t0 + seconds
+    return (rec["t"] >= t0 - 1e-12) & (rec["t"] <= t1 + 1e-12)
+
+
+def event_figures(rec, seconds=None):
     """The PCC Δf nadir (Hz, s) and the NRMSE of the PCC Δf (pu) against the operator's ref.df
-    (by the peak |ref.df|)."""
-    df = rec["f"] - 1.0
+    (by the peak |ref.df|), from the event on, ``seconds`` long (to the end by default)."""
+    sel = window(rec, seconds)
+    df = rec["f"][sel] - 1.0
+    t, ref = rec["t"][sel], rec["ref_df"][sel]
     k = int(np.argmin(df))
-    return {"nadir": (df[k] * rec["f_nom"], rec["t"][k]), "nrmse": nrmse(df, rec["ref_df"]),
-            "ref_nadir": (float(np.min(rec["ref_df"])) * rec["f_nom"], rec["t"][int(np.argmin(rec["ref_df"]))])}
+    return {"nadir": (df[k] * rec["f_nom"], t[k]), "nrmse": nrmse(df, ref),
+            "ref_nadir": (float(np.min(ref)) * rec["f_nom"], t[int(np.argmin(ref))])}
 
 
-OWN_SIGNALS = ("time", "grid.pcc.f", "operator.ref.df")
+OWN_SIGNALS = ("time", "grid.pcc.f", "grid.coi.f", "operator.ref.df", "grid.der[1].p", "grid.der[2].p",
+               "grid.der[3].p", "wind.v_dc", "pv.v_dc", "bess.v_dc")
 
 
-def own_case1(out_dir, t_end):
-    """Our master's run of the bundled case1_load system (the phasor grid FMU of the same case,
-    1 ms steps) for ``t_end``: the signals of OWN_SIGNALS as arrays, or None when the cosim
-    binary or the bundle is missing."""
+def own_case1(out_dir, t_end, event="load", twin=False):
+    """Our master's run of case I's ``event`` in the phasor setting (the grid FMU of the same case,
+    1 ms steps) for ``t_end``: the bundled case1_<event>, or with ``twin`` phasor_case1_<event>
+    (the same with the units' outer loops set as the EMT controllers'); the signals of
+    OWN_SIGNALS as arrays, or None when the cosim binary or the bundle is missing."""
     import subprocess
 
     from conftest import DIST
 
-    ssp = DIST.parent / "case1_load" / "case1_load.ssp"
-    cosim = DIST.parents[1] / "target" / "release" / "cosim"
+    name = f"{'phasor_' if twin else ''}case1_{event}"
+    ssp = DIST.parent / name / f"{name}.ssp"
+    cosim = pathlib.Path(os.environ.get("DVPP_COSIM", DIST.parents[1] / "target" / "release" / "cosim"))
     if not (ssp.exists() and cosim.exists()):
         return None
-    csv = os.path.join(out_dir, "case1_load.csv")
+    csv = os.path.join(out_dir, f"{name}.csv")
     subprocess.run([str(cosim), str(ssp), "--out", csv, "--stop", str(t_end), "--record",
                     ",".join(OWN_SIGNALS[1:])], check=True, capture_output=True)
     with open(csv) as f:
@@ -294,24 +420,33 @@ def own_case1(out_dir, t_end):
     return dict(zip(OWN_SIGNALS, data.T))
 
 
-def compare_own(rec, own):
-    """The PCC Δf against our master's phasor run: NRMSE by its peak |Δf|, its nadir (Hz, s),
-    and its own PCC Δf against its ref.df (NRMSE by the peak |ref.df|)."""
-    df_own = own["grid.pcc.f"] - 1.0
-    k = int(np.argmin(df_own))
-    return {"nrmse": nrmse(rec["f"] - 1.0, np.interp(rec["t"], own["time"], df_own)),
-            "nadir_own": (df_own[k] * rec["f_nom"], own["time"][k]),
-            "nrmse_own_ref": nrmse(df_own, own["operator.ref.df"])}
+def compare_own(rec, own, seconds=None):
+    """DPsim's run against our master's phasor run, from the event on (``seconds`` long, to the
+    end by default): the NRMSE of the PCC Δf and of the COI Δf, each by the peak of ours; both
+    nadirs (Hz, s) of each; our own PCC Δf against its ref.df (NRMSE by the peak |ref.df|)."""
+    sel = window(rec, seconds)
+    t = rec["t"][sel]
+    sel_own = (own["time"] >= t[0] - 1e-9) & (own["time"] <= t[-1] + 1e-9)
+    out = {}
+    for key, mine in (("pcc", rec["f"]), ("coi", rec["coi"])):
+        theirs = own["grid.pcc.f" if key == "pcc" else "grid.coi.f"] - 1.0
+        k, j = int(np.argmin(theirs[sel_own])), int(np.argmin(mine[sel] - 1.0))
+        out[key] = {"nrmse": nrmse(mine[sel] - 1.0, np.interp(t, own["time"], theirs)),
+                    "nadir": ((mine[sel][j] - 1.0) * rec["f_nom"], t[j]),
+                    "nadir_own": (theirs[sel_own][k] * rec["f_nom"], own["time"][sel_own][k])}
+    out["nrmse_own_ref"] = nrmse(own["grid.pcc.f"][sel_own] - 1.0, own["operator.ref.df"][sel_own])
+    return out
 
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--end", type=float, default=None, help="simulated time, s (2 flat, 5 with --event)")
-    parser.add_argument("--event", action="store_true", help="the case's 28 MW load step at bus 2")
+    parser.add_argument("--event", choices=EVENTS, default=None,
+                        help="load: the case's 28 MW load step at bus 2; cloud: case1_cloud's PV availability step")
     args = parser.parse_args()
     end = args.end or (5.0 if args.event else 2.0)
     rec = run(end, event=args.event)
-    print(f"DPsim EMT, {end:g} s at {rec['h'] * 1e6:g} µs, event {'on' if args.event else 'off'}: "
+    print(f"DPsim EMT, {end:g} s at {rec['h'] * 1e6:g} µs, event {args.event}: "
           f"wall {rec['wall']:.1f} s; PCC at t = 0 {abs(rec['v0']):.6f} pu at {math.degrees(cmath.phase(rec['v0'])):.4f} deg")
     print("units' start (pu on S_base): " + ", ".join(f"{n} {s.real:.4f}{s.imag:+.4f}j" for n, s in rec["s0"].items()))
     k_end = round(rec["t_step"] / rec["h"]) if rec["t_step"] is not None else None
@@ -325,16 +460,20 @@ def main():
               f"{e['ref_nadir'][0]:.5f} Hz at {e['ref_nadir'][1]:.4f} s; NRMSE (PCC Δf vs ref.df, by peak) {e['nrmse']:.3e}")
         import tempfile
 
-        with tempfile.TemporaryDirectory(prefix="case1-load-") as tmp:
-            own = own_case1(tmp, end)
-        if own is None:
-            print("(our master's cosim binary or the case1_load bundle is missing: no comparison)")
-        else:
+        for twin, label in ((True, f"phasor_case1_{args.event}"), (False, f"case1_{args.event}")):
+            with tempfile.TemporaryDirectory(prefix="case1-") as tmp:
+                own = own_case1(tmp, end, args.event, twin)
+            if own is None:
+                print(f"(our master's cosim binary or the {label} bundle is missing: no comparison)")
+                continue
             c = compare_own(rec, own)
-            print(f"our master's phasor case1_load: PCC Δf nadir {c['nadir_own'][0]:.5f} Hz at {c['nadir_own'][1]:.4f} s; "
-                  f"NRMSE of DPsim's PCC Δf against it (by its peak) {c['nrmse']:.3e}; its own PCC Δf vs its "
-                  f"ref.df NRMSE {c['nrmse_own_ref']:.3e}")
+            for key in ("pcc", "coi"):
+                x = c[key]
+                print(f"{key.upper()} Δf: nadir {x['nadir'][0]:.5f} Hz at {x['nadir'][1]:.4f} s, {label} "
+                      f"{x['nadir_own'][0]:.5f} Hz at {x['nadir_own'][1]:.4f} s; NRMSE against it {x['nrmse']:.3e}")
+            print(f"{label}: its PCC Δf vs its ref.df NRMSE {c['nrmse_own_ref']:.3e}")
         print(f"at {end:g} s: PCC Δf {(rec['f'][-1] - 1) * rec['f_nom']:.5f} Hz, ref.df {rec['ref_df'][-1] * rec['f_nom']:.5f} Hz")
+    print("wall time: " + ", ".join(f"{k} {x:.1f} s" for k, x in rec["timing"].items()))
     print(f"flags {rec['flags']}; warnings {rec['warnings']}")
 
 

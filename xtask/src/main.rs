@@ -88,6 +88,12 @@ tasks:
            figures in results/, figures in tests/figures/, metrics table into
            docs/case-studies.md; then
            case study III with its R/X Monte Carlo (as `case3`)
+  emt-case1 [--end T] [--events load,cloud]
+           bundle, then run case study I in DPsim EMT (tests/python/emt_case1.py in target/venv):
+           the nine-bus system with the DVPP's EMT controller FMUs, each event for T s (default
+           20) beside our master's phasor runs; CSVs in results/, figures
+           tests/figures/emt_case1_<event>.svg, the table of docs/emt.md (full runs only); fails
+           when a criterion of docs/emt.md §12 is not met
   test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
            Rust tests (the win64 binaries under wine among them, required: DVPP_REQUIRE_WIN64=1
            unless DVPP_WIN64=0), the short fuzz (`fuzz --cases 300 --seed 1`), the API docs
@@ -137,6 +143,7 @@ fn main() -> ExitCode {
             bundle(&[]).and_then(|_| run(study_binary()?.arg(study).args(&args[1..])))
         }
         Some("bench") => bench(),
+        Some("emt-case1") => emt_case1(&args[1..]),
         Some("test") => test(),
         // The default FMUs and case1_load only: the scenario cases compile, not bundle.
         Some("fuzz") => bundle(&FMUS.iter().map(|f| f.id.to_string()).collect::<Vec<_>>())
@@ -583,6 +590,24 @@ fn test() -> Result {
         started.elapsed().as_secs_f64()
     );
     Ok(())
+}
+
+/// Case study I in DPsim EMT, both events, with the table of docs/emt.md when run in full.
+fn emt_case1(args: &[String]) -> Result {
+    bundle(&[])?;
+    let cosim = cosim_binary()?;
+    let python = python_env()?;
+    let mut c = Command::new(&python);
+    c.arg(root().join("tests").join("python").join("emt_case1.py"))
+        .args(args)
+        .current_dir(root())
+        .env("DVPP_DIST", root().join("dist").join("default"))
+        .env("DVPP_COSIM", &cosim);
+    // The documented table is the full runs': a shorter or partial run leaves it alone.
+    if args.is_empty() {
+        c.arg("--docs").arg(root().join("docs").join("emt.md"));
+    }
+    run(&mut c)
 }
 
 fn write_docs() -> Result {

@@ -241,6 +241,9 @@ impl DerEmt {
         }
         self.write_modulation(s, &rt, rho + 0.5 * s[self.t_s] * omega_b);
         s[self.i_dc_ref] = i_src;
+        let range = self.source_range(s, 0.0);
+        s[self.p_src[0]] = range[0];
+        s[self.p_src[1]] = range[1];
         s[self.p] = p0;
         s[self.q] = q0;
         s[self.v] = rt.v0;
@@ -260,6 +263,13 @@ impl DerEmt {
     /// The highest set point the primary source allows at `t`: `deload · P_avail - G_dc`, on S_base.
     fn headroom(&self, s: &Store, t: f64) -> f64 {
         s[self.deload] * self.available(s, t) - s[self.g_dc] * s[self.s_rated] / s[self.s_base]
+    }
+
+    /// What the primary source can deliver at `t`, `[0, P_avail]` or `±P_avail` for storage, on
+    /// S_rated.
+    fn source_range(&self, s: &Store, t: f64) -> [f64; 2] {
+        let cap = self.available(s, t) * s[self.s_base] / s[self.s_rated];
+        [if s[self.storage] { -cap } else { 0.0 }, cap]
     }
 
     /// The modulation for the converter voltage `rt.v_m` at the frame angle `rho`.
@@ -379,17 +389,24 @@ impl DerEmt {
         let charging = rt.i_src * v_dc - g_dc * v_dc * v_dc - p_conv;
         let command =
             p_conv + g_dc * v_dc * v_dc - s[self.k_dc] / c_dc * stored - rt.k_d * charging;
-        let cap = self.available(s, t + h) / to_base;
-        let floor = if s[self.storage] { -cap } else { 0.0 };
-        let source = command > cap || command < floor;
-        let i_cmd = command.clamp(floor, cap) / v_dc.max(V_DC_FLOOR);
-        rt.i_src += -(-h / s[self.tau_dc]).exp_m1() * (i_cmd - rt.i_src);
+        // The command drives the source's lag unclamped; the source stays within its range
+        // (modelled here as the host's source model does it: cut at once to a range that fell,
+        // held at a bound the lag reaches).
+        let range = self.source_range(s, t + h);
+        let v_range = v_dc.max(V_DC_FLOOR);
+        let (lo, hi) = (range[0] / v_range, range[1] / v_range);
+        let i_cmd = command / v_range;
+        let i0 = rt.i_src.clamp(lo, hi);
+        rt.i_src = (i_cmd + (i0 - i_cmd) * (-h / s[self.tau_dc]).exp()).clamp(lo, hi);
+        let source = (rt.i_src >= hi && i_cmd > hi) || (rt.i_src <= lo && i_cmd < lo);
 
         rt.v_m = v_m;
         rt.df = df_next;
         let rho_out = rho + 1.5 * h * omega_b * (1.0 + df_next);
         self.write_modulation(s, rt, rho_out);
         s[self.i_dc_ref] = i_cmd;
+        s[self.p_src[0]] = range[0];
+        s[self.p_src[1]] = range[1];
         s[self.p] = p;
         s[self.q] = q;
         s[self.v] = v;

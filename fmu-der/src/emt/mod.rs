@@ -29,9 +29,11 @@
 //!   Grid-following units run the current loop alone.
 //! * **Dc side**: the command holds `v_dc` at 1 through the source, as the phasor DER's dc model
 //!   does (`k_dc` on the stored energy, a damping term on the capacitor's power for `dc.zeta`,
-//!   feed-forward of the converter power and the link losses), within what the primary source
-//!   has (`[0, P_avail]`, or `±P_avail` for storage); the set point is the dispatch curtailed
-//!   to `deload · P_avail - G_dc`.
+//!   feed-forward of the converter power and the link losses) into the source's lag; the source
+//!   itself stays within what it has (`[0, P_avail]`, or `±P_avail` for storage, output as
+//!   `p_src_min`, `p_src_max` for the host's source model), as the phasor DER's does: the
+//!   command is not clamped, the source is. The set point is the dispatch curtailed to
+//!   `deload · P_avail - G_dc`.
 //!
 //! Timing: the output computed at the end of a step is meant to be held over the next step (a
 //! zero-order hold, as an averaged converter model applies a modulation), so the dq-to-abc
@@ -99,6 +101,7 @@ pub struct DerEmt {
     mu_p_lpf: Vec<Real>,
     m_abc: [Real; 3],
     i_dc_ref: Real,
+    p_src: [Real; 2],
     p: Real,
     q: Real,
     v: Real,

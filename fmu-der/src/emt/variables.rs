@@ -231,8 +231,20 @@ impl DerEmt {
             v,
             "i_dc_ref",
             "pu",
-            "current command to the primary (dc) source, pu of S_rated/v_dc*, within its availability",
+            "current command to the primary (dc) source's lag, pu of S_rated/v_dc* (the source itself holds its power within [p_src_min, p_src_max])",
         );
+        let p_src = [
+            ("p_src_min", "lowest", "0, or -P_avail for storage"),
+            ("p_src_max", "highest", "P_avail"),
+        ]
+        .map(|(name, which, what)| {
+            out(
+                v,
+                name,
+                "pu",
+                &format!("the {which} power the primary source can deliver now, on S_rated ({what}): for the host's source model"),
+            )
+        });
         let p = out(
             v,
             ports::P,
@@ -346,6 +358,7 @@ impl DerEmt {
             mu_p_lpf,
             m_abc,
             i_dc_ref,
+            p_src,
             p,
             q,
             v: vv,
@@ -369,7 +382,7 @@ impl DerEmt {
             limit_source: flag(
                 v,
                 "limit.source",
-                "the dc command is held at the primary source's availability",
+                "the primary source is held at a bound of its availability (p_src_min, p_src_max) while the dc command asks for more",
             ),
             rt: None,
         })

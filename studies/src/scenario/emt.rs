@@ -195,6 +195,9 @@ pub(super) fn unit_wiring(name: &str, k: usize) -> Vec<Wire> {
         wires.push(wire(name, &port, PLANT, &format!("der[{k}].{port}")));
     }
     wires.push(wire(name, "i_dc_ref", PLANT, &format!("der[{k}].i_dc_ref")));
+    for port in ["p_src_min", "p_src_max"] {
+        wires.push(wire(name, port, PLANT, &format!("der[{k}].{port}")));
+    }
     wires
 }
 

@@ -278,16 +278,17 @@ mod tests {
         }
     }
 
-    /// EMT-level systems: per DER its 10 measurements from the plant and 4 commands to it; with
+    /// EMT-level systems: per DER its 10 measurements from the plant and 6 commands to it (the
+    /// modulation, the dc source's command and its range); with
     /// an operator as case study I (4 measurements and mu_q per DER, mu_p of the 2 low-pass
     /// units, their 2 gains to the complement) and the plant's 4 PCC measurements.
     #[test]
     fn emt_scenarios_wire_outputs_to_inputs() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-        assert_wired(&dir.join("scenarios").join("emt_island.toml"), 14);
+        assert_wired(&dir.join("scenarios").join("emt_island.toml"), 16);
         assert_wired(
             &dir.join("scenarios").join("emt_thevenin.toml"),
-            3 * 14 + 3 * 5 + 2 + 2 + 4,
+            3 * 16 + 3 * 5 + 2 + 2 + 4,
         );
     }
 

@@ -1,0 +1,1 @@
+//! The generated Rust source that carries the vertex gains into `dvpp-control`.

@@ -123,7 +123,12 @@ pub fn sigma_max(a: &DMatrix<f64>, b: &DMatrix<f64>, c: &DMatrix<f64>, omega: f6
 /// by golden-section search around the grid's peak. Returns the peak and its frequency (pu).
 pub fn hinf_sweep(design: &Design, mu: f64) -> (f64, f64) {
     let (a, b, c) = closed_loop(design, mu);
-    let f = |w: f64| sigma_max(&a, &b, &c, w);
+    sweep_peak(&a, &b, &c)
+}
+
+/// The largest `σ_max(C (jωI - A)⁻¹ B)` over frequency, as [`hinf_sweep`] finds it, and where.
+pub fn sweep_peak(a: &DMatrix<f64>, b: &DMatrix<f64>, c: &DMatrix<f64>) -> (f64, f64) {
+    let f = |w: f64| sigma_max(a, b, c, w);
     let (lo, hi, n) = (-5.0f64, 3.0f64, 2000);
     let at = |i: usize| 10f64.powf(lo + (hi - lo) * i as f64 / (n - 1) as f64);
     let mut best = (0, f64::NEG_INFINITY);
@@ -172,6 +177,8 @@ pub struct Report {
     pub residuals: [f64; 2],
     /// Largest real part (rad/s) of the continuous closed loop over the μ grid, and where.
     pub worst_real_part: (f64, f64),
+    /// Largest eigenvalue magnitude (rad/s) of the continuous closed loop over the grid.
+    pub fastest_pole: f64,
     /// Largest eigenvalue magnitude of the sampled closed loop with the delay over the grid.
     pub worst_sampled_radius: (f64, f64),
     /// Largest swept H∞ norm over the grid: (norm, μ, frequency in Hz).
@@ -207,6 +214,14 @@ impl Report {
             gamma: design.gamma,
             residuals: lmi_residuals(design),
             worst_real_part: worst(&|mu| continuous_abscissa(design, mu)),
+            fastest_pole: worst(&|mu| {
+                let (a, _, _) = closed_loop(design, mu);
+                a.complex_eigenvalues()
+                    .iter()
+                    .map(|l| l.norm() * design.spec.omega_b())
+                    .fold(0.0, f64::max)
+            })
+            .0,
             worst_sampled_radius: worst(&|mu| sampled_radius(design, mu)),
             worst_sweep: (ws, wmu, w_hz),
             sweep,
@@ -220,5 +235,37 @@ impl Report {
             && self.worst_real_part.0 < 0.0
             && self.worst_sampled_radius.0 < 1.0
             && self.worst_sweep.0 <= 1.01 * self.gamma
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A lightly damped second-order system `ω_n²/(s² + 2ζω_n s + ω_n²)` peaks at
+    /// `1/(2ζ√(1-ζ²))` at `ω_n √(1-2ζ²)`.
+    #[test]
+    fn sweep_finds_a_resonant_peak() {
+        let (wn, z) = (3.7, 0.02);
+        let a = DMatrix::from_row_slice(2, 2, &[0.0, 1.0, -wn * wn, -2.0 * z * wn]);
+        let b = DMatrix::from_column_slice(2, 1, &[0.0, wn * wn]);
+        let c = DMatrix::from_row_slice(1, 2, &[1.0, 0.0]);
+        let (peak, w) = sweep_peak(&a, &b, &c);
+        let exact = 1.0 / (2.0 * z * (1.0 - z * z).sqrt());
+        assert!((peak / exact - 1.0).abs() < 1e-9, "{peak} {exact}");
+        assert!(
+            (w / (wn * (1.0 - 2.0 * z * z).sqrt()) - 1.0).abs() < 1e-4,
+            "{w}"
+        );
+    }
+
+    /// Two outputs: `σ_max` of a static 2×1 gain is its Euclidean norm, reached at dc.
+    #[test]
+    fn sigma_max_of_a_vector_gain() {
+        let a = DMatrix::from_row_slice(1, 1, &[-1.0]);
+        let b = DMatrix::from_row_slice(1, 1, &[1.0]);
+        let c = DMatrix::from_column_slice(2, 1, &[3.0, 4.0]);
+        assert!((sigma_max(&a, &b, &c, 0.0) - 5.0).abs() < 1e-12);
+        assert!((sigma_max(&a, &b, &c, 1.0) - 5.0 / 2f64.sqrt()).abs() < 1e-12);
     }
 }

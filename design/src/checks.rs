@@ -168,6 +168,29 @@ pub fn sweep_peak(a: &DMatrix<f64>, b: &DMatrix<f64>, c: &DMatrix<f64>) -> (f64,
     peak
 }
 
+/// The range of factors `[g_lo, g_hi]` on the whole gain `K(μ)` for which the sampled closed
+/// loop with its delay stays stable at every μ of the grid: the loop's gain margins, measured on
+/// 400 factors spaced logarithmically from 0.01 to 100 (the ends mean "at least").
+pub fn gain_margins(design: &Design) -> (f64, f64) {
+    let grid = mu_grid(design);
+    let stable = |g: f64| {
+        let mut d = design.clone();
+        for k in &mut d.gains {
+            *k *= g;
+        }
+        grid.iter().all(|&mu| sampled_radius(&d, mu) < 1.0)
+    };
+    let factor = |i: i32| 10f64.powf(i as f64 / 100.0);
+    let (mut lo, mut hi) = (0, 0);
+    while lo > -200 && stable(factor(lo - 1)) {
+        lo -= 1;
+    }
+    while hi < 200 && stable(factor(hi + 1)) {
+        hi += 1;
+    }
+    (factor(lo), factor(hi))
+}
+
 /// All checks, as figures.
 #[derive(Debug, Clone)]
 pub struct Report {
@@ -183,6 +206,8 @@ pub struct Report {
     pub worst_sampled_radius: (f64, f64),
     /// Largest swept H∞ norm over the grid: (norm, μ, frequency in Hz).
     pub worst_sweep: (f64, f64, f64),
+    /// The sampled loop's gain margins ([`gain_margins`]).
+    pub gain_margins: (f64, f64),
     /// The swept norm at each μ of the grid.
     pub sweep: Vec<(f64, f64)>,
 }
@@ -224,6 +249,7 @@ impl Report {
             .0,
             worst_sampled_radius: worst(&|mu| sampled_radius(design, mu)),
             worst_sweep: (ws, wmu, w_hz),
+            gain_margins: gain_margins(design),
             sweep,
         }
     }

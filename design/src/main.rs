@@ -87,6 +87,20 @@ fn run() -> Result<(), String> {
         r.worst_sampled_radius.1
     );
     println!(
+        "sampled closed loop stable for the gain scaled by {:.3} to {:.3} (gain margins {:.1} dB, {:.1} dB)",
+        r.gain_margins.0,
+        r.gain_margins.1,
+        20.0 * r.gain_margins.0.log10(),
+        20.0 * r.gain_margins.1.log10()
+    );
+    let (lo, hi) = r
+        .sweep
+        .iter()
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &(_, s)| {
+            (a.min(s), b.max(s))
+        });
+    println!("H-infinity norm by frequency sweep over the grid of mu: from {lo:.6} to {hi:.6}");
+    println!(
         "H-infinity norm by frequency sweep: largest {:.6} at mu = {:.3}, {:.1} Hz; sweep/gamma = {:.6}",
         r.worst_sweep.0,
         r.worst_sweep.1,

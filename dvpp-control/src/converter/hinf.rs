@@ -13,7 +13,7 @@
 //! `Δq` the measured reactive power, both pu on the converter's rating; `w_q` the q axis of the
 //! voltage behind the virtual resistance, `v_c + r_v i_g`. `K(μ)` interpolates the vertex gains
 //! linearly in the equivalent dc gain `μ k_q/K_Q`, where `k_q = S_dvpp/(S_rated D_q)` is this
-//! unit's reference gain and [`K_Q`](super::hinf_gains::K_Q) the design's: the reference model's
+//! unit's reference gain and [`K_Q`] the design's: the reference model's
 //! input gain `k_q μ` is what the design scheduled on. Docs: `docs/hinf.md`.
 
 use super::filter::ConverterData;

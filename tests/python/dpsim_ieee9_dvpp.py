@@ -5,7 +5,8 @@ tests/python/dpsim_ieee9.py builds them (its functions, imported), and at bus 2,
 the case's [[der]] slots as the bundled emt_thevenin system's units (wind, PV, BESS: its
 wind/pv/bess.fmu, operator.fmu) hosted as tests/python/dpsim_emt_thevenin.py hosts them: each
 unit's averaged converter, RLC filter and transformer (``dpsim_emt_host.Converter``, per unit on
-its rating) into bus 2, the FMUs closing the loops every 50 µs, the PCC meter (SRF-PLL + lag of
+its rating) into bus 2, the unit FMUs closing the loops every 50 µs and the operator FMU exchanging
+every 1 ms (H_OPERATOR), the PCC meter (SRF-PLL + lag of
 the plant's pcc.f_filter_t) giving the operator's pcc.f.
 
 - Bus 2's base voltage is taken as the host's 20 kV (``dpsim_emt_host.V_LL``) instead of 18 kV:
@@ -206,6 +207,9 @@ class DcLink:
 
 
 EVENTS = ("load", "cloud")
+# The operator's communication step: the DVPP's own rate (the phasor case's step), not the
+# converters'.
+H_OPERATOR = 1e-3
 SCENARIOS = ROOT / "studies" / "scenarios"
 
 
@@ -222,10 +226,11 @@ def unit_start(event, twin=True):
     return {d["name"]: dict(d.get("start", {})) for d in sc["der"]}
 
 
-def run(t_end, event=None, h=H_STEP, root=None, case=None, start=None):
+def run(t_end, event=None, h=H_STEP, root=None, case=None, start=None, h_operator=H_OPERATOR):
     """One coupled run; ``event``: None, "load" (the case's load step) or "cloud" (the PV's
     availability step, its avail.* values from ``start``); ``start``: the units' start values by
-    name over the bundle's (by default, with an event, unit_start(event)). Returns the recorded signals: ``t``, ``f`` (the PCC meter's pcc.f, pu),
+    name over the bundle's (by default, with an event, unit_start(event)); ``h_operator``: the
+    operator FMU's communication step (a multiple of h). Returns the recorded signals: ``t``, ``f`` (the PCC meter's pcc.f, pu),
     ``v`` (|v_pcc|), ``w`` (machine speeds, pu, by name), ``coi`` (their centre of inertia, H on
     the system base), ``p``/``q`` (units x steps, pu on S_base), ``v_dc`` (units x steps),
     ``mu`` (the operator's dc gains by name), ``ref_df`` (the operator's ref.df), the units' flags
@@ -310,20 +315,27 @@ def run(t_end, event=None, h=H_STEP, root=None, case=None, start=None):
     timing = dict.fromkeys(("dpsim", "units", "operator"), 0.0)
     started = clock()
     measured = [c.measure() for c in grid.converters]
+    # The operator at its own rate, exchanging as our master's Jacobi step does: at each of its
+    # communication points the units take the outputs it had there, and it steps over the next
+    # interval from the inputs measured there.
+    op_every = max(1, round(h_operator / h))
+    out_op = operator.fmu.getReal(mu_vr + [vr_ref_df])
     for k in range(n):
         t = k * h
         t0 = clock()
-        outs = [der.step(t, h, [*x[:-1], link.v, *m]) for der, x, link, m in zip(ders, measured, links, mu)]
+        if k % op_every == 0:
+            mu = np.split(np.array(out_op[:-1]), mu_split)
+            held = out_op
+            values = []
+            for (p_avail, p_set), x in zip(to_operator, s):
+                values += [p_avail, p_set, x.real, x.imag]
+            p_sum = sum(s)
+            operator.fmu.setReal(op_in, values + [p_sum.real, p_sum.imag, f, abs(v)])
+            operator.fmu.doStep(t, op_every * h)
+            out_op = operator.fmu.getReal(mu_vr + [vr_ref_df])
         t1 = clock()
-        values = []
-        for (p_avail, p_set), x in zip(to_operator, s):
-            values += [p_avail, p_set, x.real, x.imag]
-        p_sum = sum(s)
-        operator.fmu.setReal(op_in, values + [p_sum.real, p_sum.imag, f, abs(v)])
-        operator.fmu.doStep(t, h)
-        out_op = operator.fmu.getReal(mu_vr + [vr_ref_df])
+        outs = [der.step(t, h, [*x[:-1], link.v, *m]) for der, x, link, m in zip(ders, measured, links, mu)]
         t2 = clock()
-        mu = np.split(np.array(out_op[:-1]), mu_split)
         to_operator = [out[-2:] for out in outs]
         while switches and switches[0][0] == k + 1:
             switches.pop(0)[1].close()
@@ -342,9 +354,9 @@ def run(t_end, event=None, h=H_STEP, root=None, case=None, start=None):
             link.step(out[-5], (2.0 / 3.0) * float(np.dot(applied, i_mean)) * h, h, out[-4], out[-3])
         v, s = grid.pcc()
         f = meter.step(v)
-        sample(k + 1, t, f, v, s, out_op[-1], out_op[:-1])
-        timing["units"] += t1 - t0
-        timing["operator"] += t2 - t1
+        sample(k + 1, t, f, v, s, held[-1], held[:-1])
+        timing["operator"] += t1 - t0
+        timing["units"] += t2 - t1
         timing["dpsim"] += t4 - t3
     wall = clock() - started
     timing["rest"] = wall - sum(timing.values())

@@ -9,8 +9,8 @@ against the operator's ref.df no worse than the twin's own by more than a point 
 over the run is the 20 s figure: the first 2 s after an event are the transient, 13-15 %), a
 flat start, the dc links' energy accounts closed and their voltages near 1 pu, no converter
 limit, no warning, and the CSV and the figure written. Measured (3 s): load COI 0.93 %, nadir
--0.13298 vs -0.13453 Hz (1.2 %), PCC vs ref.df 12.9 % (twin 13.0 %); cloud COI 0.94 %, nadir
-1.1 %, 14.3 % (twin 14.6 %); lowest v_dc 0.990 (PV, load) and 0.977 (PV, cloud); about 13 s of
+-0.13298 vs -0.13453 Hz (1.2 %), PCC vs ref.df 12.6 % (twin 13.0 %); cloud COI 0.95 %, nadir
+1.1 %, 14.3 % (twin 14.6 %); lowest v_dc 0.990 (PV, load) and 0.977 (PV, cloud); about 12 s of
 wall time per event.
 """
 import pytest

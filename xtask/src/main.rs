@@ -1,10 +1,12 @@
 //! `cargo xtask`: builds and bundles the FMUs, runs the tests, and runs the case studies (the
 //! release `dvpp-study` binary of `studies/`).
 
+mod apt;
 mod catalog;
 mod docs;
 mod federation;
 mod fuzz;
+mod hinf;
 mod win64;
 
 use dvpp_studies::scenario;
@@ -78,7 +80,8 @@ tasks:
   cosim SYSTEM.ssp [--stop T] [--step H] [--algorithm jacobi|gauss-seidel|iterative]
                   [--threads N|all] [--out FILE.csv] [--plot FILE.svg --signals a.x,b.y]
                   run an SSP system (or one FMU) in our master
-  bench    bundle, then measure side by side in one run: case1_load in our master, fmpy.ssp
+  bench    the H-infinity synthesis's time (as `hinf` without writing); bundle, then measure
+           side by side in one run: case1_load in our master, fmpy.ssp
            and libcosim; the coupling error and cost of jacobi, gauss-seidel and iterative
            against a 0.05 ms run; our master's ns per macro step (a ring of three C FMUs,
            case1_load); ns per fmi2DoStep of each benchmark FMU; cost per unit for 3 to
@@ -94,7 +97,8 @@ tasks:
            20) beside our master's phasor runs; CSVs in results/, figures
            tests/figures/emt_case1_<event>.svg, the table of docs/emt.md (full runs only); fails
            when a criterion of docs/emt.md §12 is not met
-  test     install the win64 toolchain and wine if missing (rustup, apt-get), bundle, run the
+  test     install the win64 toolchain and wine, and dvpp-design's libopenblas-dev and
+           libgfortran-12-dev, if missing (rustup, apt-get), bundle, run the
            Rust tests (the win64 binaries under wine among them, required: DVPP_REQUIRE_WIN64=1
            unless DVPP_WIN64=0), the short fuzz (`fuzz --cases 300 --seed 1`), the API docs
            without warnings, then the Python (fmpy) tests in target/venv
@@ -123,7 +127,14 @@ tasks:
            panic, crash, hang, unclear refusal: bad) and the first bad cases of each kind,
            and fails if there is one; J cases at a time (default 1); `--first K --cases 1`
            re-runs case K alone
-  docs     regenerate docs/variables.md's tables from the FMUs' model descriptions";
+  docs     regenerate docs/variables.md's tables from the FMUs' model descriptions
+  hinf [--set NAME=VALUE]...
+           install libopenblas-dev and libgfortran-12-dev if missing (apt-get), then run the
+           release `dvpp-design` binary: synthesize option B's LPV H-infinity gains, check them
+           (LMI residuals, closed-loop eigenvalues continuous and sampled on 50 values of mu,
+           the H-infinity norm by a frequency sweep), print the figures and the synthesis time,
+           and write dvpp-control/src/converter/hinf_gains.rs; with --set, explore a changed
+           weight without writing (docs/hinf.md)";
 
 fn main() -> ExitCode {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -161,6 +172,7 @@ fn main() -> ExitCode {
         Some("fuzz-compile") => return fuzz::compile_child(&args[1..]),
         Some("fuzz-fmi") => return fuzz::fmi_child(&args[1..]),
         Some("docs") => write_docs(),
+        Some("hinf") => hinf::hinf(&args[1..]),
         _ => Err(USAGE.into()),
     };
     match result {
@@ -417,6 +429,8 @@ fn cosim_binary() -> Result<PathBuf> {
 }
 
 fn bench() -> Result {
+    // Option B's synthesis time (and its checks), before the simulations.
+    hinf::bench()?;
     bundle(&[])?;
     // The masters side by side on case study I (same system, horizon and step).
     let python = python_env()?;
@@ -539,6 +553,8 @@ fn python_env() -> Result<PathBuf> {
 fn test() -> Result {
     let started = std::time::Instant::now();
     let win64_required = win64::install_for_tests();
+    // Before anything builds the workspace: dvpp-design links OpenBLAS and libgfortran.
+    hinf::install();
     bundle(&[])?;
     let dist = root().join("dist").join("default");
     let cosim = cosim_binary()?;

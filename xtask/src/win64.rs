@@ -107,16 +107,6 @@ pub fn build(cargo: impl FnOnce() -> Command, profile: &str, packages: &[&str]) 
     Ok(())
 }
 
-/// Run `program args`, returning whether it succeeded; its output goes to the terminal.
-fn try_run(program: &str, args: &[&str]) -> bool {
-    println!("test setup: {program} {}", args.join(" "));
-    Command::new(program)
-        .args(args)
-        .env("DEBIAN_FRONTEND", "noninteractive")
-        .status()
-        .is_ok_and(|s| s.success())
-}
-
 /// Whether wine (64-bit) is installed, where the wine test looks for it.
 fn wine_installed() -> bool {
     runs("wine64") || Path::new("/usr/lib/wine/wine64").is_file() || runs("wine")
@@ -133,7 +123,7 @@ pub fn install_for_tests() -> bool {
     }
     if !target_installed() {
         println!("test setup: installing the Rust target {TARGET} for the FMUs' win64 binaries");
-        if !try_run("rustup", &["target", "add", TARGET]) {
+        if !crate::apt::try_run("rustup", &["target", "add", TARGET]) {
             println!(
                 "test setup: could not install {TARGET} (`rustup target add {TARGET}` failed); \
                  the FMUs get no win64 binaries and the wine test fails ({REQUIRE} is set; \
@@ -156,12 +146,7 @@ pub fn install_for_tests() -> bool {
          binaries in the tests)",
         packages.join(" ")
     );
-    let mut install = vec!["install", "-y", "-qq", "--no-install-recommends"];
-    install.extend(&packages);
-    // A fresh machine may have no package lists yet: update and try once more.
-    let installed = try_run("apt-get", &install)
-        || (try_run("apt-get", &["update", "-qq"]) && try_run("apt-get", &install));
-    if !installed {
+    if !crate::apt::install(&packages) {
         println!(
             "test setup: could not install {} with apt-get (not Debian, or not root?); without \
              {LINKER} the FMUs get no win64 binaries, and the wine test fails ({REQUIRE} is set; \

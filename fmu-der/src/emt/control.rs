@@ -5,7 +5,7 @@ use crate::dc::damping_gain;
 use crate::layer::{self, PfReference};
 use crate::{err, positive, AdpfKind, Mode};
 use dvpp_control::converter::{
-    Abc, ConverterData, Dq, FilterMeasurement, InnerDesign, InnerLoops, Pll,
+    Abc, ConverterData, Dq, FilterMeasurement, HinfLoop, InnerDesign, InnerLoops, Pll,
 };
 use dvpp_control::VqModel;
 use fmi_export::{Context, ModelError, Store};
@@ -34,6 +34,9 @@ pub(crate) struct Runtime {
     n_lpf: usize,
     inner: InnerLoops,
     design: InnerDesign,
+    /// Grid-forming with `inner.kind` = 1: option B's state feedback in place of the q PI and
+    /// the inner loops.
+    hinf: Option<HinfLoop>,
     /// Grid-following: the PLL on the grid-side voltage.
     pll: Option<Pll>,
     /// Grid-forming: the frame's angle beyond `ω_b t` (rad).
@@ -195,6 +198,20 @@ impl DerEmt {
         let (p0, q0) = (vg.p(m.i_g) * to_base, vg.q(m.i_g) * to_base);
         let v_m = m.v_c + m.i_f * data.r_f + m.i_f.rot90() * data.l_f;
         inner.settle(&m, v_m, 1.0);
+        let hinf = match (s[self.inner_kind], mode) {
+            (0, _) => None,
+            (1, Mode::GridForming) => Some(HinfLoop::new(
+                &m,
+                v_m,
+                s[self.vi_r],
+                s[self.s_dvpp] / (s[self.s_rated] * s[self.dq]),
+            )),
+            (1, Mode::GridFollowing) => return Err(err(
+                "inner.kind",
+                "= 1 (option B, the H-infinity v-q matching) is for grid-forming units (mode = 1)",
+            )),
+            (k, _) => return Err(err("inner.kind", format!("= {k}: must be 0 or 1"))),
+        };
         let pll = (mode == Mode::GridFollowing)
             .then(|| Pll::new(s[self.pll_kp], s[self.pll_ki], omega_b, rho));
         let v_dc = s[self.v_dc];
@@ -209,6 +226,7 @@ impl DerEmt {
             n_lpf: self.adpf_p.n_lpf.map_or(0, |n| s[n] as usize),
             inner,
             design,
+            hinf,
             pll,
             theta: rho,
             df: 0.0,
@@ -333,21 +351,44 @@ impl DerEmt {
                 layer::set_p_gains(pf, rt.p_kind, s[self.mu_p], &lpf[..rt.n_lpf])?;
                 let (df, dtheta) =
                     layer::forming_angle(pf, (p - p_set) * to_dvpp, h, s[self.f_nom]);
-                rt.e = layer::voltage_matching(
-                    &mut rt.e_int,
-                    rt.q_ref,
-                    q,
-                    rt.e0,
-                    s[self.qpi_kp],
-                    s[self.qpi_ki],
-                    s[self.e_max],
-                    h,
-                );
+                // Option B: the state feedback on the reactive error of this sample; option A:
+                // the q PI sets E.
+                let b = match rt.hinf.as_mut() {
+                    Some(hl) => {
+                        let v = hl.step(
+                            &m,
+                            (q - rt.q0) / to_base,
+                            (rt.q_ref - rt.q0) / to_base,
+                            rt.vq.mu_q(),
+                            v_m_max,
+                            omega_b,
+                            h,
+                        );
+                        rt.e = self.behind_virtual(s, &m).d;
+                        Some(v)
+                    }
+                    None => {
+                        rt.e = layer::voltage_matching(
+                            &mut rt.e_int,
+                            rt.q_ref,
+                            q,
+                            rt.e0,
+                            s[self.qpi_kp],
+                            s[self.qpi_ki],
+                            s[self.e_max],
+                            h,
+                        );
+                        None
+                    }
+                };
                 rt.q_ref = rt.q0 + rt.vq.step(dv, h) / to_dvpp;
                 rt.theta += dtheta;
-                // The capacitor-voltage reference behind the virtual resistance.
-                let v_ref = Dq { d: rt.e, q: 0.0 } - m.i_g * s[self.vi_r];
-                (rt.inner.step(&m, v_ref, omega, v_m_max, h), df)
+                let v_m = b.unwrap_or_else(|| {
+                    // The capacitor-voltage reference behind the virtual resistance.
+                    let v_ref = Dq { d: rt.e, q: 0.0 } - m.i_g * s[self.vi_r];
+                    rt.inner.step(&m, v_ref, omega, v_m_max, h)
+                });
+                (v_m, df)
             }
             PfReference::Following(fp) => {
                 layer::set_p_gains(fp, rt.p_kind, s[self.mu_p], &lpf[..rt.n_lpf])?;
@@ -421,7 +462,10 @@ impl DerEmt {
         s[self.p_avail] = self.available(s, t + h);
         s[self.i_ac] = m.i_f.norm();
         s[self.limit_current] = rt.inner.current_limited();
-        s[self.limit_modulation] = rt.inner.modulation_limited();
+        s[self.limit_modulation] = rt
+            .hinf
+            .as_ref()
+            .map_or(rt.inner.modulation_limited(), HinfLoop::modulation_limited);
         s[self.limit_source] = source;
         Ok(())
     }

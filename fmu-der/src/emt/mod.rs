@@ -112,6 +112,8 @@ pub struct DerEmt {
     q_ref: Real,
     p_avail: Real,
     i_ac: Real,
+    /// Option A (0) or B (1) for the grid-forming v-q matching.
+    inner_kind: Integer,
     limit_current: Boolean,
     limit_modulation: Boolean,
     limit_source: Boolean,

@@ -305,6 +305,15 @@ impl DerEmt {
             "pu",
             "magnitude of the converter-side current, pu of the rated current",
         );
+        let inner_kind = v.integer(
+            Spec::parameter(
+                "inner.kind",
+                0,
+                "",
+                "grid-forming: the matching controller's v-q part, 0 = option A (the q PI, the capacitor-voltage and converter-current PI loops), 1 = option B (the LPV H-infinity state feedback of dvpp-control's hinf_gains, scheduled on mu_q: docs/hinf.md)",
+            )
+            .range(0.0, 1.0),
+        );
         let flag =
             |v: &mut Variables, name: &str, desc: &str| v.boolean(Spec::boolean_output(name, desc));
         Ok(DerEmt {
@@ -369,6 +378,7 @@ impl DerEmt {
             q_ref,
             p_avail,
             i_ac,
+            inner_kind,
             limit_current: flag(
                 v,
                 "limit.current",

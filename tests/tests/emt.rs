@@ -1,5 +1,5 @@
-//! The EMT level end to end in our master: the bundled `emt_island` meets the droop law and
-//! conserves energy, and `emt_thevenin` (the paper's converters and inner loops at 50 µs) gives
+//! The EMT level end to end in our master: the bundled `emt_island` (option A) and
+//! `emt_island_hinf` (option B) meet the droop law and conserve energy, and `emt_thevenin` (the paper's converters and inner loops at 50 µs) gives
 //! the PCC frequency and the units' powers of its phasor twin `phasor_thevenin`.
 
 use dvpp_cosim::master::{self, Options};
@@ -34,7 +34,20 @@ const S_BASE: f64 = 100.0;
 
 #[test]
 fn emt_island_settles_at_the_droop_law_and_conserves_energy() {
-    let t = run("emt_island");
+    island_droop_and_energy("emt_island");
+}
+
+/// Option B (the LPV H∞ state feedback, `inner.kind` = 1) in the same island: the same droop law
+/// within 0.5 %, the same energy accounts.
+#[test]
+fn emt_island_hinf_settles_at_the_droop_law_and_conserves_energy() {
+    island_droop_and_energy("emt_island_hinf");
+}
+
+/// The island scenario `name` is flat before its load step, settles at the droop law, keeps the
+/// converter within its limits and the dc link held, and closes its energy accounts.
+fn island_droop_and_energy(name: &str) {
+    let t = run(name);
     let time = column(&t, "time");
     let (df, p, p_set) = (
         column(&t, "unit.df"),
@@ -47,7 +60,7 @@ fn emt_island_settles_at_the_droop_law_and_conserves_energy() {
     let law = -(p[n] - p_set[n]) * (S_BASE / S_DVPP) / D;
     let meter = column(&t, "plant.pcc.df")[n];
     println!(
-        "emt_island: before the step |df| <= {flat:.1e}; at {:.1} s df = {:.6e} (unit), {meter:.6e} (PCC meter), law {law:.6e}: {:.1e} relative",
+        "{name}: before the step |df| <= {flat:.1e}; at {:.1} s df = {:.6e} (unit), {meter:.6e} (PCC meter), law {law:.6e}: {:.1e} relative",
         time[n],
         df[n],
         ((df[n] - law) / law).abs()
@@ -69,7 +82,7 @@ fn emt_island_settles_at_the_droop_law_and_conserves_energy() {
     let dc_residual = src[n] - ac[n] - dc_loss[n] - (dc_stored[n] - dc_stored[0]);
     let ac_residual = ac[n] - ac_loss[n] - loads[n] - (ac_stored[n] - ac_stored[0]);
     println!(
-        "energy residuals: dc {dc_residual:.1e} MJ, ac {ac_residual:.1e} MJ of {:.1} MJ delivered",
+        "{name}: energy residuals: dc {dc_residual:.1e} MJ, ac {ac_residual:.1e} MJ of {:.1} MJ delivered",
         ac[n]
     );
     assert!(dc_residual.abs() < 1e-9 * src[n].abs(), "dc {dc_residual}");

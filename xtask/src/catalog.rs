@@ -184,6 +184,12 @@ pub const BENCHES: &[Bench] = &[
         set: &[],
     },
     Bench {
+        label: "DER at EMT level, grid-forming, option B (H-infinity), 50 us (target <= 1 us)",
+        fmu: "default/dvpp_der_emt.fmu",
+        h: 50e-6,
+        set: &[("inner.kind", 1.0)],
+    },
+    Bench {
         label: "DER at EMT level, grid-following, 50 us",
         fmu: "default/dvpp_der_emt.fmu",
         h: 50e-6,

@@ -238,6 +238,11 @@ struct Dip {
 /// The generic unit at the H∞ design's operating point (0.5 pu of its rating) on the stiff grid,
 /// option `kind` (0 = A, 1 = B), `Tdes.Dq` = `dq`, the grid voltage stepped by `dv` at 0.1 s.
 fn run_dip(kind: i32, dq: f64, dv: f64, t_end: f64) -> Dip {
+    run_dip_with(kind, dq, dv, t_end, &[])
+}
+
+/// [`run_dip`] with the controller's parameters `extra` set (the plant keeps the paper's filter).
+fn run_dip_with(kind: i32, dq: f64, dv: f64, t_end: f64, extra: &[(&str, f64)]) -> Dip {
     let mut plant = Plant::at(0.3 * S_BASE / S_RATED, 0.0);
     let mut h = Harness::<DerEmt>::new();
     assert_eq!(h.setup_experiment(0.0, None), Status::Ok);
@@ -245,6 +250,9 @@ fn run_dip(kind: i32, dq: f64, dv: f64, t_end: f64) -> Dip {
     h.set("mode", 1);
     h.set("inner.kind", kind);
     h.set("Tdes.Dq", dq);
+    for (name, value) in extra {
+        h.set(name, *value);
+    }
     assert_eq!(h.enter_initialization_mode(), Status::Ok);
     plant.measure(&mut h, 0.0);
     assert_eq!(h.exit_initialization_mode(), Status::Ok);
@@ -427,5 +435,31 @@ fn option_b_against_option_a_at_the_default_reactive_droop() {
     assert!(f[1].after_50ms < f[0].after_50ms);
     for x in &f {
         assert!(x.p_last < 0.02 * x.p_peak && x.p_last < 0.35 * x.p_mid);
+    }
+}
+
+/// How exactly option B needs the transformer: its reference model reads the MV-side voltage
+/// the controller computes with `L_t di_g/dt`, and at μ = 1 (reference gain 160 on the rating)
+/// an error in the controller's `L_t` puts back part of the loop the fix removed. Within ±2 %
+/// the dip of [`option_b_is_stable_over_the_range_of_mu_at_the_default_reactive_droop`] still
+/// settles (measured, docs/hinf.md §8: +5 % reaches the modulation limit 8 ms after the dip,
+/// -5 % hardly damps the frame's swing).
+#[test]
+fn option_b_at_the_default_reactive_droop_with_the_transformer_known_within_2_percent() {
+    for l_t in [0.098, 0.102] {
+        let r = run_dip_with(1, 0.01, -2e-3, 3.0, &[("L_t", l_t)]);
+        assert_eq!(r.limited_at, None, "L_t {l_t}");
+        let f = dip_figures(&r, 0.192);
+        println!(
+            "option B, Dq 0.01, the controller's L_t {l_t}: largest |p - p0| {:.3} pu, from 1 to 1.5 s {:.1e} pu, over the last 0.5 s {:.1e} pu; rms |q - q_ref| {:.3e} pu",
+            f.p_peak, f.p_mid, f.p_last, f.rms_own
+        );
+        assert!(
+            f.p_last < 0.35 * f.p_mid,
+            "L_t {l_t}: {} {}",
+            f.p_last,
+            f.p_mid
+        );
+        assert!(f.p_last < 1e-2, "L_t {l_t}: {}", f.p_last);
     }
 }

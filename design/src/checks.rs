@@ -48,8 +48,10 @@ pub fn continuous_abscissa(design: &Design, mu: f64) -> f64 {
 /// The closed loop as the controller runs it, one sample to the next: the filter sampled
 /// exactly at `spec.h` against a stiff grid, the converter voltage the command of the previous
 /// sample (one sample of computation delay), the reference model sampled exactly with `Δ|v|`
-/// held, the integrals by the forward rule; the gain's delay-lag states fed with that previous
-/// command. State `[x_filter (6), u_prev (2), Δq_ref, ξ_q, ξ_w]`.
+/// held (`v` the grid-voltage estimate with the transformer's `L_t di_g/dt` over the last
+/// sample), the integrals by the forward rule; the gain's delay-lag states fed with that
+/// previous command. State `[x_filter (6), u_prev (2), Δq_ref, ξ_q, ξ_w, v_c,prev (2),
+/// i_g,prev (2)]`.
 pub fn sampled_closed_loop(design: &Design, mu: f64) -> DMatrix<f64> {
     let spec: &DesignSpec = &design.spec;
     let wb = spec.omega_b();
@@ -63,23 +65,47 @@ pub fn sampled_closed_loop(design: &Design, mu: f64) -> DMatrix<f64> {
     let meas = Measurements::of(spec, &OperatingPoint::of(spec));
     let k = design.gain(mu);
     let n = N_STATES;
-    let mut phi = DMatrix::zeros(n, n);
+    let mut phi = DMatrix::zeros(n + 4, n + 4);
     // Filter driven by the previous command.
     phi.view_mut((0, 0), (6, 8))
         .copy_from(&e.view((0, 0), (6, 8)));
     // The new command from the state now.
     phi.view_mut((6, 0), (2, n)).copy_from(&k);
-    // Reference model: x_r+ = a x_r + (1 - a)(-k_q μ Δ|v|).
+    // Reference model: x_r+ = a x_r + (1 - a)(-k_q μ Δ|v|), with `v` the grid-voltage estimate
+    // the controller computes between the last two samples, `(v̂_g + v̂_g,prev)/2 -
+    // L_t (i_g - i_g,prev)/(ω_b h)`: on a stiff grid only its error against the transformer's
+    // exact relation is left of the states.
     let ar = (-h / spec.tau_q).exp();
-    phi[(8, 8)] = ar;
+    let c = spec.data.l_t / (wb * h);
+    let op = OperatingPoint::of(spec);
+    let dir = op.v_g * (1.0 / op.v_g.norm());
+    // Δ|v| over [x_filter now, v_c,prev, i_g,prev].
+    let mut dv = DMatrix::zeros(1, n + 4);
     for j in 0..6 {
-        phi[(8, j)] = -(1.0 - ar) * spec.k_q * mu * meas.dv[j];
+        dv[(0, j)] = 0.5 * meas.dv[j];
+    }
+    for (j, col) in [(2, n), (3, n + 1), (4, n + 2), (5, n + 3)] {
+        dv[(0, col)] = 0.5 * meas.dv[j];
+    }
+    for (j, col, d) in [(4, n + 2, dir.d), (5, n + 3, dir.q)] {
+        dv[(0, j)] -= c * d;
+        dv[(0, col)] += c * d;
+    }
+    phi[(8, 8)] = ar;
+    for col in 0..n + 4 {
+        phi[(8, col)] += -(1.0 - ar) * spec.k_q * mu * dv[(0, col)];
+    }
+    for j in 0..6 {
         phi[(9, j)] = wb * h * meas.dq[j];
         phi[(10, j)] = wb * h * meas.dwq[j];
     }
     phi[(9, 8)] = -wb * h;
     phi[(9, 9)] = 1.0;
     phi[(10, 10)] = 1.0;
+    // The capacitor voltage and the grid-side current of the previous sample.
+    for (j, col) in [(2, n), (3, n + 1), (4, n + 2), (5, n + 3)] {
+        phi[(col, j)] = 1.0;
+    }
     phi
 }
 

@@ -18,7 +18,9 @@
 //!
 //! Input `u`: the converter-voltage command (d, q). Disturbance `w`: the grid voltage `Δv_g`
 //! (d, q) of a stiff grid behind the transformer. All pu on the converter's rating, in the
-//! unit's dq frame at nominal speed.
+//! unit's dq frame at nominal speed. The reference model reads the grid voltage's magnitude
+//! (the controller computes it with the transformer's `L_t di_g/dt`, see
+//! `fmu-der/src/emt/control.rs`), so it is driven by `w` and not by the states.
 
 use dvpp_control::converter::{ConverterData, Dq, Lcl};
 use nalgebra::{DMatrix, DVector};
@@ -245,8 +247,8 @@ pub struct Plant {
 }
 
 impl Plant {
-    /// The plant of `spec` at scheduling parameter `mu`. Only `A`'s reference-model row depends
-    /// on μ, affinely.
+    /// The plant of `spec` at scheduling parameter `mu`. Only `B1`'s reference-model row depends
+    /// on μ, linearly.
     pub fn at(spec: &DesignSpec, mu: f64) -> Plant {
         let wb = spec.omega_b();
         let op = OperatingPoint::of(spec);
@@ -269,11 +271,14 @@ impl Plant {
             a[(6 + k, 6 + k)] = -1.0 / td;
             b2[(6 + k, k)] = 1.0 / td;
         }
-        // The reference model τ Δq_ref' = -Δq_ref - k_q μ Δ|v|.
+        // The reference model τ Δq_ref' = -Δq_ref - k_q μ Δ|v_g|, reading the MV-side voltage
+        // (the controller's estimate with the transformer's L_t di_g/dt): the disturbance.
         let tau = spec.tau_q * wb;
         a[(8, 8)] = -1.0 / tau;
+        let n_g = op.v_g.norm();
+        b1[(8, 0)] = -spec.k_q * mu * op.v_g.d / n_g / tau;
+        b1[(8, 1)] = -spec.k_q * mu * op.v_g.q / n_g / tau;
         for j in 0..6 {
-            a[(8, j)] = -spec.k_q * mu * meas.dv[j] / tau;
             // ξ_q' = Δq - Δq_ref, ξ_w' = Δw_q.
             a[(9, j)] = meas.dq[j];
             a[(10, j)] = meas.dwq[j];
@@ -350,21 +355,23 @@ mod tests {
     }
 
     #[test]
-    fn only_the_reference_row_depends_on_mu_and_affinely() {
+    fn only_the_reference_row_of_b1_depends_on_mu_and_linearly() {
         let spec = DesignSpec::default();
         let (p0, p1, ph) = (
             Plant::at(&spec, 0.0),
             Plant::at(&spec, 1.0),
             Plant::at(&spec, 0.5),
         );
-        let diff = &p1.a - &p0.a;
+        let diff = &p1.b1 - &p0.b1;
         for i in 0..N_STATES {
             if i != 8 {
                 assert_eq!(diff.row(i).amax(), 0.0, "row {i}");
             }
         }
+        assert_eq!(p0.b1.row(8).amax(), 0.0);
         assert!(diff.row(8).amax() > 1.0);
-        assert!((&ph.a - (&p0.a + &p1.a) * 0.5).amax() < 1e-12);
+        assert!((&ph.b1 - (&p0.b1 + &p1.b1) * 0.5).amax() < 1e-12);
+        assert_eq!(p0.a, p1.a);
         assert_eq!(p0.b2, p1.b2);
         assert_eq!(p0.c1, p1.c1);
     }

@@ -9,8 +9,8 @@
 //! [ C1 X + D12 W                 0    -γ I             ]
 //! ```
 //!
-//! `A` is affine in μ and `B2`, `C1`, `D12` do not depend on it, so the left-hand side is affine
-//! in `(μ, W)` jointly: imposed at both ends `μ_min`, `μ_max` with one `X` and a `W_k` each, it
+//! `B1` is linear in μ (the reference model's input gain) and `A`, `B2`, `C1`, `D12` do not
+//! depend on it, so the left-hand side is affine in `(μ, W)` jointly: imposed at both ends `μ_min`, `μ_max` with one `X` and a `W_k` each, it
 //! holds for every μ between with `W(μ)` the same convex combination of the `W_k`, and so for
 //! `K(μ) = W(μ) X⁻¹`, the linear interpolation of the vertex gains `K_k = W_k X⁻¹`. Minimizing
 //! `γ` over `(γ, X, W_0, W_1)` is one semidefinite program, solved by clarabel.

@@ -238,6 +238,11 @@ struct Dip {
 /// The generic unit at the H∞ design's operating point (0.5 pu of its rating) on the stiff grid,
 /// option `kind` (0 = A, 1 = B), `Tdes.Dq` = `dq`, the grid voltage stepped by `dv` at 0.1 s.
 fn run_dip(kind: i32, dq: f64, dv: f64, t_end: f64) -> Dip {
+    run_dip_with(kind, dq, dv, t_end, &[])
+}
+
+/// [`run_dip`] with the controller's parameters `extra` set (the plant keeps the paper's filter).
+fn run_dip_with(kind: i32, dq: f64, dv: f64, t_end: f64, extra: &[(&str, f64)]) -> Dip {
     let mut plant = Plant::at(0.3 * S_BASE / S_RATED, 0.0);
     let mut h = Harness::<DerEmt>::new();
     assert_eq!(h.setup_experiment(0.0, None), Status::Ok);
@@ -245,6 +250,9 @@ fn run_dip(kind: i32, dq: f64, dv: f64, t_end: f64) -> Dip {
     h.set("mode", 1);
     h.set("inner.kind", kind);
     h.set("Tdes.Dq", dq);
+    for (name, value) in extra {
+        h.set(name, *value);
+    }
     assert_eq!(h.enter_initialization_mode(), Status::Ok);
     plant.measure(&mut h, 0.0);
     assert_eq!(h.exit_initialization_mode(), Status::Ok);
@@ -319,21 +327,139 @@ fn option_b_tracks_the_reactive_reference_on_a_voltage_dip() {
     assert!(rms[1] < rms[0], "{rms:?}");
 }
 
-/// What option B's design does not yet cover: at the default `Tdes.Dq` = 0.01 the reference's
-/// gain on the unit's rating is 160 μ_q, and tracking it fast closes a loop through the voltage
-/// the controller estimates (`v_c - (R_t + jX_t) i_g`, which the frame's swing moves) that the
-/// design model, without the frame's angle, does not see: after the same dip the swing grows
-/// until the modulation limits (option A, tracking slowly, stays stable). Measured here so that
-/// a design that covers it shows.
+/// The figures of a dip run after the dip at 0.1 s: the rms of `q - q_ref` against the
+/// controller's own reference and against the reference model's exact response to the grid's
+/// step, `Δq_∞ (1 - e^{-(t - 0.1)/τ_q})`, the largest `|q - q_ref|` after 50 ms, and the largest
+/// `|p - p₀|` in the whole run, from 1 to 1.5 s and in the last 0.5 s (S_base).
+struct DipFigures {
+    rms_own: f64,
+    rms_model: f64,
+    after_50ms: f64,
+    p_peak: f64,
+    p_mid: f64,
+    p_last: f64,
+}
+
+fn dip_figures(r: &Dip, dq_inf: f64) -> DipFigures {
+    let step = (0.1 / H).round() as usize;
+    let n = r.q.len();
+    let (q0, tau) = (r.q[0], 0.01);
+    let rms = |f: &dyn Fn(usize) -> f64| {
+        ((step..n).map(|k| f(k).powi(2)).sum::<f64>() / (n - step) as f64).sqrt()
+    };
+    let model = |k: usize| q0 + dq_inf * (1.0 - (-((k - step) as f64 * H) / tau).exp());
+    let peak = |r0: std::ops::Range<usize>| r0.map(|k| (r.p[k] - 0.3).abs()).fold(0.0, f64::max);
+    DipFigures {
+        rms_own: rms(&|k| r.q[k] - r.q_ref[k]),
+        rms_model: rms(&|k| r.q[k] - model(k)),
+        after_50ms: (step + (0.05 / H) as usize..n)
+            .map(|k| (r.q[k] - r.q_ref[k]).abs())
+            .fold(0.0, f64::max),
+        p_peak: peak(0..n),
+        p_mid: peak((1.0 / H) as usize..(1.5 / H) as usize),
+        p_last: peak(n - (0.5 / H) as usize..n),
+    }
+}
+
+/// Option B at the default `Tdes.Dq` = 0.01 over the range of μ (the equivalent dc gain
+/// `0.01/D_q`: 1, 0.5, 0.2, 0.1, 0.033) after a 0.2 % dip of the grid voltage: the frame's swing
+/// decays and q follows the reference without steady-state error. The reference model reads
+/// the MV-side voltage with the transformer's `L_t di_g/dt` (docs/hinf.md §8); with the phasor
+/// estimate alone the same run at μ = 1 swung into the modulation limit at 1.24 s.
 #[test]
-fn option_b_at_the_default_reactive_gain_loses_the_frame_swing() {
-    let b = run_dip(1, 0.01, -2e-3, 1.5);
-    let swing = b.p.iter().map(|x| (x - 0.3).abs()).fold(0.0, f64::max);
+fn option_b_is_stable_over_the_range_of_mu_at_the_default_reactive_droop() {
+    let (dv, t_end) = (-2e-3, 3.0);
+    for dq in [0.01, 0.02, 0.05, 0.1, 0.3] {
+        let r = run_dip(1, dq, dv, t_end);
+        let dq_inf = -dv / dq * 96.0 / S_BASE;
+        let f = dip_figures(&r, dq_inf);
+        let last = (r.q.last().unwrap() - r.q_ref.last().unwrap()).abs();
+        println!(
+            "option B, Dq {dq} (mu {:.3}): q_ref moves by {dq_inf:.4} pu; largest |p - p0| {:.3} pu, from 1 to 1.5 s {:.1e} pu, over the last 0.5 s {:.1e} pu; |q - q_ref| at {t_end} s {last:.1e} pu, largest after 50 ms {:.1e} pu, rms {:.3e} pu (against the model's response {:.3e} pu)",
+            0.01 / dq,
+            f.p_peak,
+            f.p_mid,
+            f.p_last,
+            f.after_50ms,
+            f.rms_own,
+            f.rms_model
+        );
+        assert_eq!(r.limited_at, None, "Dq {dq}");
+        // The swing decays: over the last 0.5 s below a third of what it was from 1 to 1.5 s,
+        // and below 5e-3 pu.
+        assert!(
+            f.p_last < 0.35 * f.p_mid,
+            "Dq {dq}: {} {}",
+            f.p_last,
+            f.p_mid
+        );
+        assert!(f.p_last < 5e-3, "Dq {dq}: {}", f.p_last);
+        assert!(last < 1e-4, "Dq {dq}: {last}");
+    }
+}
+
+/// Options A and B at the default `Tdes.Dq` = 0.01 (μ = 1) on the same dip: B follows the
+/// reactive reference more closely (rms error after the dip, against its own reference and
+/// against the reference model's exact response), at the price of a larger swing of the frame
+/// (its fast change of q turns the voltage behind the virtual resistance before the p-f
+/// reference model's frame follows); both settle.
+#[test]
+fn option_b_against_option_a_at_the_default_reactive_droop() {
+    let (dv, dq) = (-2e-3, 0.01);
+    let dq_inf = -dv / dq * 96.0 / S_BASE;
+    let mut f = Vec::new();
+    for kind in [0, 1] {
+        let r = run_dip(kind, dq, dv, 3.0);
+        assert_eq!(r.limited_at, None, "option {kind}");
+        let x = dip_figures(&r, dq_inf);
+        println!(
+            "option {}, Dq 0.01: rms |q - q_ref| after the dip {:.3e} pu (against the model's response {:.3e} pu), largest after 50 ms {:.2e} pu; largest |p - p0| {:.3} pu, from 1 to 1.5 s {:.1e} pu, over the last 0.5 s {:.1e} pu",
+            ["A", "B"][kind as usize],
+            x.rms_own,
+            x.rms_model,
+            x.after_50ms,
+            x.p_peak,
+            x.p_mid,
+            x.p_last
+        );
+        f.push(x);
+    }
     println!(
-        "option B, Dq 0.01: largest |p - p0| {swing:.2} pu, modulation limit at {:?} s",
-        b.limited_at
+        "B over A: rms {:.3}, against the model {:.3}; largest |p - p0| {:.1}",
+        f[1].rms_own / f[0].rms_own,
+        f[1].rms_model / f[0].rms_model,
+        f[1].p_peak / f[0].p_peak
     );
-    assert!(swing > 0.5, "{swing}");
-    let a = run_dip(0, 0.01, -2e-3, 1.5);
-    assert_eq!(a.limited_at, None);
+    assert!(f[1].rms_own < 0.5 * f[0].rms_own);
+    assert!(f[1].rms_model < 0.5 * f[0].rms_model);
+    assert!(f[1].after_50ms < f[0].after_50ms);
+    for x in &f {
+        assert!(x.p_last < 0.02 * x.p_peak && x.p_last < 0.35 * x.p_mid);
+    }
+}
+
+/// How exactly option B needs the transformer: its reference model reads the MV-side voltage
+/// the controller computes with `L_t di_g/dt`, and at μ = 1 (reference gain 160 on the rating)
+/// an error in the controller's `L_t` puts back part of the loop the fix removed. Within ±2 %
+/// the dip of [`option_b_is_stable_over_the_range_of_mu_at_the_default_reactive_droop`] still
+/// settles (measured, docs/hinf.md §8: +5 % reaches the modulation limit 8 ms after the dip,
+/// -5 % hardly damps the frame's swing).
+#[test]
+fn option_b_at_the_default_reactive_droop_with_the_transformer_known_within_2_percent() {
+    for l_t in [0.098, 0.102] {
+        let r = run_dip_with(1, 0.01, -2e-3, 3.0, &[("L_t", l_t)]);
+        assert_eq!(r.limited_at, None, "L_t {l_t}");
+        let f = dip_figures(&r, 0.192);
+        println!(
+            "option B, Dq 0.01, the controller's L_t {l_t}: largest |p - p0| {:.3} pu, from 1 to 1.5 s {:.1e} pu, over the last 0.5 s {:.1e} pu; rms |q - q_ref| {:.3e} pu",
+            f.p_peak, f.p_mid, f.p_last, f.rms_own
+        );
+        assert!(
+            f.p_last < 0.35 * f.p_mid,
+            "L_t {l_t}: {} {}",
+            f.p_last,
+            f.p_mid
+        );
+        assert!(f.p_last < 1e-2, "L_t {l_t}: {}", f.p_last);
+    }
 }

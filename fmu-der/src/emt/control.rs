@@ -61,6 +61,10 @@ pub(crate) struct Runtime {
     vc_lag: Dq,
     /// The converter voltage the last output asked for (dq, pu), for the converter power.
     v_m: Dq,
+    /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
+    /// (dq, pu, its frame), for the voltage the reactive reference model reads.
+    i_g_prev: Dq,
+    vg_prev: Dq,
     /// The dc source's current as the controller models it (its command through `τ_dc`).
     i_src: f64,
     k_d: f64,
@@ -241,6 +245,8 @@ impl DerEmt {
             vg_lag: vg,
             vc_lag: m.v_c,
             v_m,
+            i_g_prev: m.i_g,
+            vg_prev: vg,
             i_src,
             k_d: damping_gain(
                 s[self.tau_dc],
@@ -329,7 +335,22 @@ impl DerEmt {
         let to_base = s[self.s_rated] / s[self.s_base];
         let to_dvpp = s[self.s_base] / s[self.s_dvpp];
         let (p, q, v) = (vg.p(m.i_g) * to_base, vg.q(m.i_g) * to_base, vg.norm());
-        let dv = v - rt.v0;
+        // Option B's reference model reads the MV-side voltage with the transformer's
+        // L_t di_g/dt too, which the phasor estimate `vg` leaves out: over the last sample,
+        // `(vg + vg_prev)/2 - L_t (i_g - i_g,prev)/(ω_b h)` (centred, so that the estimate's
+        // error is of second order in h). The converter's own current does not move that
+        // voltage on a stiff grid; `vg` does move with it (by L_t di_g/dt), and the fast
+        // tracking of option B would close a loop through it and the frame's swing
+        // (docs/hinf.md §8).
+        let dv = if rt.hinf.is_some() {
+            let di = (m.i_g - rt.i_g_prev) * (s[self.l_t] / (omega_b * h));
+            let v_mv = (vg + rt.vg_prev) * 0.5 - di;
+            rt.i_g_prev = m.i_g;
+            rt.vg_prev = vg;
+            v_mv.norm() - rt.v0
+        } else {
+            v - rt.v0
+        };
 
         // The operator's dc gains.
         let lpf = layer::operator_gains(

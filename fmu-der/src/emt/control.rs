@@ -16,6 +16,11 @@ use std::f64::consts::PI;
 /// taken as empty and the modulation saturates rather than divide by zero.
 const V_DC_FLOOR: f64 = 0.05;
 
+/// Option B's trip: the converter current (pu of the rated peak) beyond which a unit running the
+/// H∞ state feedback, which has no current limit of its own, stops with an error, in units of
+/// `I_max`.
+const HINF_TRIP: f64 = 1.5;
+
 /// Grid-following: time constant (s) of the voltages the current reference is computed from.
 /// The reference `conj(S/v_g) + jωC_f v_c` taken from the instantaneous voltages closes a loop
 /// through the LCL resonance (710 Hz) that the current loop's 1.5 samples of delay make
@@ -376,6 +381,17 @@ impl DerEmt {
                 // the q PI sets E.
                 let b = match rt.hinf.as_mut() {
                     Some(hl) => {
+                        // Option B has no current limit: beyond HINF_TRIP · I_max the unit trips
+                        // rather than run a converter far past its rating.
+                        let i_f = m.i_f.norm();
+                        let trip = HINF_TRIP * s[self.i_max];
+                        if i_f > trip {
+                            return Err(ModelError(format!(
+                                "option B (inner.kind = 1) has no current limit: the converter \
+                                 current reached {i_f:.3} pu at t = {t} s, beyond {HINF_TRIP} \
+                                 I_max = {trip:.3} pu; the unit trips (docs/hinf.md §8)"
+                            )));
+                        }
                         let v = hl.step(
                             &m,
                             (q - rt.q0) / to_base,
@@ -482,7 +498,11 @@ impl DerEmt {
         s[self.q_ref] = rt.q_ref;
         s[self.p_avail] = self.available(s, t + h);
         s[self.i_ac] = m.i_f.norm();
-        s[self.limit_current] = rt.inner.current_limited();
+        s[self.limit_current] = match rt.hinf {
+            // Option B does not limit its current: the flag says it is beyond I_max.
+            Some(_) => m.i_f.norm() > s[self.i_max],
+            None => rt.inner.current_limited(),
+        };
         s[self.limit_modulation] = rt
             .hinf
             .as_ref()

@@ -1,5 +1,5 @@
-//! The EMT level end to end in our master: the bundled `emt_island` (option A) and
-//! `emt_island_hinf` (option B) meet the droop law and conserve energy, and `emt_thevenin` (the paper's converters and inner loops at 50 µs) gives
+//! The EMT level end to end in our master: the bundled `emt_island` meets the droop law and
+//! conserves energy, and `emt_thevenin` (the paper's converters and inner loops at 50 µs) gives
 //! the PCC frequency and the units' powers of its phasor twin `phasor_thevenin`.
 
 use dvpp_cosim::master::{self, Options};
@@ -35,13 +35,6 @@ const S_BASE: f64 = 100.0;
 #[test]
 fn emt_island_settles_at_the_droop_law_and_conserves_energy() {
     island_droop_and_energy("emt_island");
-}
-
-/// Option B (the LPV H∞ state feedback, `inner.kind` = 1) in the same island: the same droop law
-/// within 0.5 %, the same energy accounts.
-#[test]
-fn emt_island_hinf_settles_at_the_droop_law_and_conserves_energy() {
-    island_droop_and_energy("emt_island_hinf");
 }
 
 /// The island scenario `name` is flat before its load step, settles at the droop law, keeps the

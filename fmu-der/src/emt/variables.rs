@@ -382,7 +382,7 @@ impl DerEmt {
             limit_current: flag(
                 v,
                 "limit.current",
-                "the converter-current reference is held at I_max",
+                "option A: the converter-current reference is held at I_max; option B (inner.kind = 1, no current limit): the converter current is beyond I_max",
             ),
             limit_modulation: flag(
                 v,

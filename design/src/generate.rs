@@ -64,7 +64,8 @@ pub fn render(design: &Design) -> String {
          //! `[0, 1]`, maps the deviations of the states [`STATES`] from the operating point (pu on the\n\
          //! converter's rating, in the unit's dq frame; the two integrals over pu time `ω_b t`) to the\n\
          //! deviation of the converter-voltage command (d, q). The closed loop's H∞ norm from the grid\n\
-         //! voltage to the weighted outputs is below [`GAMMA`] at every μ in the range (docs/hinf.md).\n\n",
+         //! voltage to the weighted outputs is below [`GAMMA`] at every μ in the range, on every grid\n\
+         //! of the box [`THETA_MIN`], [`PHI_MAX`] (docs/hinf.md).\n\n",
     );
     writeln!(
         out,
@@ -90,6 +91,24 @@ pub fn render(design: &Design) -> String {
         design.mu[0],
     );
     constant(&mut out, "MU_MAX", "Upper end of μ.", design.mu[1]);
+    constant(
+        &mut out,
+        "STABILIZER",
+        "The frame stabilizer `k_a`: the alignment's integral follows `Δw_q - k_a Δf` (`Δf` the frame's frequency deviation, pu).",
+        s.stabilizer,
+    );
+    constant(
+        &mut out,
+        "THETA_MIN",
+        "The weakest grid of the design's box: `L_t/(L_t + L_g)` from this to 1.",
+        s.theta_min,
+    );
+    constant(
+        &mut out,
+        "PHI_MAX",
+        "The most resistive grid of the box: `R_g/(L_t + L_g)` from 0 to this.",
+        s.phi_max,
+    );
     gains(
         &mut out,
         "K_MU_MIN",

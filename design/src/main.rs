@@ -1,6 +1,6 @@
 //! `dvpp-design`: synthesize the LPV H∞ matching controller, check it without the solver, and write its gains (what `cargo xtask hinf` runs).
 
-use dvpp_design::checks::{Report, GRID};
+use dvpp_design::checks::{frame_units, grid_points, Report, GRID};
 use dvpp_design::generate;
 use dvpp_design::plant::DesignSpec;
 use dvpp_design::synthesis::synthesize;
@@ -14,7 +14,9 @@ mu, the H-infinity norm by a frequency sweep) and prints the figures; fails if a
   --write            write the gains to dvpp-control/src/converter/hinf_gains.rs
   --set NAME=VALUE   change a weight or the operating point to explore (tracking,
                      tracking_corner, alignment, alignment_corner, effort, rolloff,
-                     pole_radius, p0, q0); not with --write";
+                     pole_radius, p0, q0), the box of grids (theta_min,
+                     phi_max) or the frame stabilizer (stabilizer);
+                     not with --write";
 
 fn main() -> ExitCode {
     match run() {
@@ -46,8 +48,11 @@ fn run() -> Result<(), String> {
                     "effort" => w.effort = v,
                     "rolloff" => w.rolloff = v,
                     "pole_radius" => spec.pole_radius = v,
+                    "stabilizer" => spec.stabilizer = v,
                     "p0" => spec.p0 = v,
                     "q0" => spec.q0 = v,
+                    "theta_min" => spec.theta_min = v,
+                    "phi_max" => spec.phi_max = v,
                     _ => return Err(format!("unknown NAME {k}\n{USAGE}")),
                 }
                 changed = true;
@@ -69,22 +74,34 @@ fn run() -> Result<(), String> {
     );
     let wb = spec.omega_b();
     let r = Report::of(&design);
+    let grids = grid_points(&spec);
     println!(
-        "LMI residuals (largest eigenvalue of each vertex LMI, must be < 0): {:.3e} at mu = {}, {:.3e} at mu = {}",
-        r.residuals[0], design.mu[0], r.residuals[1], design.mu[1]
+        "grids: theta in [{}, 1], phi in [0, {}] ({} corners; checks on {} grids)",
+        spec.theta_min,
+        spec.phi_max,
+        spec.grid_corners().len(),
+        grids.len()
     );
+    for (mu, g, e) in &r.residuals {
+        println!(
+            "LMI residual (largest eigenvalue of the vertex LMI, must be < 0): {e:.3e} at mu = {mu}, {g}"
+        );
+    }
     println!(
-        "continuous closed loop, {GRID} values of mu: largest real part {:.3} rad/s (at mu = {:.3}), largest magnitude {:.0} rad/s (disk {:.0} rad/s)",
+        "continuous closed loop, {GRID} values of mu x {} grids: largest real part {:.3} rad/s (at mu = {:.3}, {}), largest magnitude {:.0} rad/s (disk {:.0} rad/s)",
+        grids.len(),
         r.worst_real_part.0,
         r.worst_real_part.1,
+        r.worst_real_part.2,
         r.fastest_pole,
         spec.pole_radius * wb
     );
     println!(
-        "sampled closed loop at {} us with one sample of delay: largest |z| {:.6} (at mu = {:.3})",
+        "sampled closed loop at {} us with one sample of delay: largest |z| {:.6} (at mu = {:.3}, {})",
         spec.h * 1e6,
         r.worst_sampled_radius.0,
-        r.worst_sampled_radius.1
+        r.worst_sampled_radius.1,
+        r.worst_sampled_radius.2
     );
     println!(
         "sampled closed loop stable for the gain scaled by {:.3} to {:.3} (gain margins {:.1} dB, {:.1} dB)",
@@ -96,16 +113,27 @@ fn run() -> Result<(), String> {
     let (lo, hi) = r
         .sweep
         .iter()
-        .fold((f64::INFINITY, 0.0f64), |(a, b), &(_, s)| {
+        .fold((f64::INFINITY, 0.0f64), |(a, b), &(_, _, s)| {
             (a.min(s), b.max(s))
         });
-    println!("H-infinity norm by frequency sweep over the grid of mu: from {lo:.6} to {hi:.6}");
+    println!("H-infinity norm by frequency sweep over mu and the grids: from {lo:.6} to {hi:.6}");
     println!(
-        "H-infinity norm by frequency sweep: largest {:.6} at mu = {:.3}, {:.1} Hz; sweep/gamma = {:.6}",
+        "H-infinity norm by frequency sweep: largest {:.6} at mu = {:.3}, {}, {:.1} Hz; sweep/gamma = {:.6}",
         r.worst_sweep.0,
         r.worst_sweep.1,
         r.worst_sweep.2,
+        r.worst_sweep.3,
         r.worst_sweep.0 / r.gamma
+    );
+    println!(
+        "the frame's swing (stabilizer {}; {} units, the grids and the island's load): worst {:.3} rad/s at {:.2} Hz (mu = {:.2}, {}, {})",
+        spec.stabilizer,
+        frame_units().len(),
+        r.worst_frame.0,
+        r.worst_frame.1,
+        r.worst_frame.2,
+        r.worst_frame.3,
+        r.worst_frame.4
     );
     println!("synthesis time: {took:.2} s");
     if !r.passes() {

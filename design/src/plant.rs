@@ -16,11 +16,13 @@
 //! | 9 | `ξ_q` | integral (pu time) of the tracking error `Δq - Δq_ref` |
 //! | 10 | `ξ_w` | integral (pu time) of the q-axis of the voltage behind the virtual resistance |
 //!
-//! Input `u`: the converter-voltage command (d, q). Disturbance `w`: the grid voltage `Δv_g`
-//! (d, q) of a stiff grid behind the transformer. All pu on the converter's rating, in the
-//! unit's dq frame at nominal speed. The reference model reads the grid voltage's magnitude
-//! (the controller computes it with the transformer's `L_t di_g/dt`, see
-//! `fmu-der/src/emt/control.rs`), so it is driven by `w` and not by the states.
+//! Input `u`: the converter-voltage command (d, q). Disturbance `w`: the voltage `Δv_s` (d, q)
+//! of the source behind the grid's impedance `R_g + jL_g` beyond the transformer ([`Grid`]: a
+//! stiff grid has none, an island is a load impedance with no source). All pu on the
+//! converter's rating, in the unit's dq frame at nominal speed. The reference model reads the
+//! MV-side voltage's magnitude (the controller computes it with the transformer's
+//! `L_t di_g/dt`, see `fmu-der/src/emt/control.rs`): on a stiff grid that is `w`, behind an
+//! impedance it moves with the unit's own current.
 
 use dvpp_control::converter::{ConverterData, Dq, Lcl};
 use nalgebra::{DMatrix, DVector};
@@ -74,6 +76,59 @@ impl Default for Weights {
     }
 }
 
+/// The grid behind the transformer, as the plant depends on it: `θ = L_t/(L_t + L_g)` and
+/// `φ = R_g/(L_t + L_g)` for a source behind `R_g + jL_g` (pu on the rating). The plant is
+/// affine in `(θ, φ)`, so a design at the corners of a box of them holds inside it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Grid {
+    /// `L_t/(L_t + L_g)`: 1 for a stiff grid, towards 0 for a weak one.
+    pub theta: f64,
+    /// `R_g/(L_t + L_g)`.
+    pub phi: f64,
+}
+
+impl Grid {
+    /// The stiff grid: the MV side is the source.
+    pub const STIFF: Grid = Grid {
+        theta: 1.0,
+        phi: 0.0,
+    };
+
+    /// The grid of a source behind `r_g + j l_g` (pu on the rating) for a transformer `l_t`.
+    pub fn behind(l_t: f64, r_g: f64, l_g: f64) -> Grid {
+        Grid {
+            theta: l_t / (l_t + l_g),
+            phi: r_g / (l_t + l_g),
+        }
+    }
+
+    /// The grid's inductance `L_g` for the transformer `l_t`.
+    pub fn l_g(&self, l_t: f64) -> f64 {
+        l_t / self.theta - l_t
+    }
+
+    /// The grid's resistance `R_g` for the transformer `l_t`.
+    pub fn r_g(&self, l_t: f64) -> f64 {
+        self.phi * l_t / self.theta
+    }
+
+    /// The filter data with the grid's impedance added to the transformer's, the series path
+    /// from the capacitor to the source.
+    pub fn series(&self, data: &ConverterData) -> ConverterData {
+        ConverterData {
+            l_t: data.l_t + self.l_g(data.l_t),
+            r_t: data.r_t + self.r_g(data.l_t),
+            ..*data
+        }
+    }
+}
+
+impl std::fmt::Display for Grid {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "theta {:.3}, phi {:.3}", self.theta, self.phi)
+    }
+}
+
 /// What the design is made for: converter, operating point, reference model and range of μ.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DesignSpec {
@@ -104,9 +159,19 @@ pub struct DesignSpec {
     pub mu_max: f64,
     /// The performance weights.
     pub weights: Weights,
+    /// The grids the design holds on: the box `θ ∈ [theta_min, 1]`, `φ ∈ [0, phi_max]`
+    /// ([`Grid`]); `theta_min` = 1 and `phi_max` = 0 is the stiff grid alone.
+    pub theta_min: f64,
+    /// Upper end of `φ`.
+    pub phi_max: f64,
     /// Radius (pu of `ω_b`) of the disk about the origin that holds every closed-loop
     /// eigenvalue at every μ: it keeps the loop well below the sampling rate.
     pub pole_radius: f64,
+    /// The frame stabilizer `k_a`: the alignment's integral follows `Δw_q - k_a Δf`, so that the
+    /// voltage behind the virtual resistance leads the frame by `k_a Δf` while the frame swings
+    /// (pu voltage per pu frequency). It is not in the design model (which holds the frame
+    /// fixed); [`Plant::with_frame`] and `checks::frame_mode` have it.
+    pub stabilizer: f64,
 }
 
 impl Default for DesignSpec {
@@ -114,7 +179,12 @@ impl Default for DesignSpec {
     /// DVPP of 96 MVA with `D_q` = 0.01 and `τ_q` = 10 ms (so `k_q` = 160, the paper's appendix
     /// model `-100 μ/(0.01 s + 1)` on the DVPP base), `vi.r` = 0.3, sampled at 50 µs, at half
     /// load and unity power factor; μ over the whole range `[0, 1]` the operator's reactive
-    /// gains `Q_cap,i/Σ Q_cap` take.
+    /// gains `Q_cap,i/Σ Q_cap` take. The grids: from the stiff grid to a source behind
+    /// `L_g` = 0.4 pu (θ = 0.2), up to φ = 0.1: `emt_thevenin`'s grid as one unit sees it
+    /// (about 0.01 + j0.08 pu: θ 0.56, φ 0.06) lies inside; the island's R-L load (1.9 + j0.39 pu:
+    /// θ 0.21, φ 4.0) outside in φ, which the checks measure apart (a box reaching φ = 4 has no
+    /// solution: its corner θ = 1, φ = 4 is a source behind 0.4 pu of pure resistance). The
+    /// frame stabilizer 12 (docs/hinf.md §8).
     fn default() -> Self {
         DesignSpec {
             data: ConverterData::PAPER,
@@ -131,6 +201,9 @@ impl Default for DesignSpec {
             mu_max: 1.0,
             weights: Weights::default(),
             pole_radius: 50.0,
+            stabilizer: 12.0,
+            theta_min: 0.2,
+            phi_max: 0.1,
         }
     }
 }
@@ -139,6 +212,22 @@ impl DesignSpec {
     /// `ω_b` (rad/s).
     pub fn omega_b(&self) -> f64 {
         2.0 * std::f64::consts::PI * self.f_nom
+    }
+
+    /// The corners of the box of grids (the stiff grid first).
+    pub fn grid_corners(&self) -> Vec<Grid> {
+        let mut out = vec![Grid::STIFF];
+        for (theta, phi) in [
+            (1.0, self.phi_max),
+            (self.theta_min, 0.0),
+            (self.theta_min, self.phi_max),
+        ] {
+            let g = Grid { theta, phi };
+            if !out.contains(&g) {
+                out.push(g);
+            }
+        }
+        out
     }
 }
 
@@ -247,13 +336,13 @@ pub struct Plant {
 }
 
 impl Plant {
-    /// The plant of `spec` at scheduling parameter `mu`. Only `B1`'s reference-model row depends
-    /// on μ, linearly.
-    pub fn at(spec: &DesignSpec, mu: f64) -> Plant {
+    /// The plant of `spec` at scheduling parameter `mu` on `grid`. Only the reference model's
+    /// row depends on μ, linearly; the plant is multi-affine in `(μ, θ, φ)`.
+    pub fn at(spec: &DesignSpec, mu: f64, grid: Grid) -> Plant {
         let wb = spec.omega_b();
         let op = OperatingPoint::of(spec);
         let meas = Measurements::of(spec, &op);
-        let (a_lcl, b_lcl) = Lcl::continuous(&spec.data, wb, 1.0);
+        let (a_lcl, b_lcl) = Lcl::continuous(&grid.series(&spec.data), wb, 1.0);
         let n = N_STATES;
         let mut a = DMatrix::zeros(n, n);
         let mut b1 = DMatrix::zeros(n, N_DISTURBANCES);
@@ -271,13 +360,21 @@ impl Plant {
             a[(6 + k, 6 + k)] = -1.0 / td;
             b2[(6 + k, k)] = 1.0 / td;
         }
-        // The reference model τ Δq_ref' = -Δq_ref - k_q μ Δ|v_g|, reading the MV-side voltage
-        // (the controller's estimate with the transformer's L_t di_g/dt): the disturbance.
+        // The reference model τ Δq_ref' = -Δq_ref - k_q μ Δ|v_mv|, reading the MV-side voltage
+        // (the controller's estimate with the transformer's L_t di_g/dt). Eliminating di_g/dt
+        // with the series path's equation: v_mv = (1 - θ) v_c - (R_t (1 - θ) - L_t φ) i_g + θ v_s,
+        // the divider between transformer and grid (on a stiff grid the source itself).
         let tau = spec.tau_q * wb;
         a[(8, 8)] = -1.0 / tau;
-        let n_g = op.v_g.norm();
-        b1[(8, 0)] = -spec.k_q * mu * op.v_g.d / n_g / tau;
-        b1[(8, 1)] = -spec.k_q * mu * op.v_g.q / n_g / tau;
+        let dir = op.v_g * (1.0 / op.v_g.norm());
+        let gain = -spec.k_q * mu / tau;
+        let (th, ph) = (grid.theta, grid.phi);
+        let c_i = -(spec.data.r_t * (1.0 - th) - spec.data.l_t * ph);
+        for (k, d) in [(0, dir.d), (1, dir.q)] {
+            a[(8, 2 + k)] = gain * d * (1.0 - th);
+            a[(8, 4 + k)] = gain * d * c_i;
+            b1[(8, k)] = gain * d * th;
+        }
         for j in 0..6 {
             // ξ_q' = Δq - Δq_ref, ξ_w' = Δw_q.
             a[(9, j)] = meas.dq[j];
@@ -301,6 +398,205 @@ impl Plant {
             c1[(4 + k, 6 + k)] = -w.rolloff;
         }
         Plant { a, b1, b2, c1, d12 }
+    }
+}
+
+/// A unit's p-f ADPF `m(s)`, as its frame sees it.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Adpf {
+    /// A static dc gain `μ_p`.
+    Static(f64),
+    /// A low-pass `μ_p/(τ s + 1)` (the wind and PV presets; `τ` in s).
+    LowPass {
+        /// Dc gain.
+        mu: f64,
+        /// Time constant (s).
+        tau: f64,
+    },
+    /// The complement `1 - Σ μ_j/(τ_j s + 1)` of the low-pass units' shares (the BESS), the
+    /// pairs `(μ_j, τ_j)`.
+    Complement(Vec<(f64, f64)>),
+}
+
+/// The p-f reference model's frame, which the design model holds fixed: for the analysis of
+/// [`crate::checks::frame_mode`]. The frame turns at `1 + Δf` with
+/// `Δf = -T_pf(s)/m(s) Δp_dvpp`, `T_pf = 1/(H s + D)`, and the grid's source lies at the angle
+/// `-δ` in it, `δ' = ω_b Δf`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Frame {
+    /// `T_des`'s inertia `H` (s) in `T_pf = 1/(H s + D)`.
+    pub h: f64,
+    /// `T_des`'s damping `D`.
+    pub d: f64,
+    /// `S_rated/S_dvpp`: the unit's power in pu of its rating to pu of the DVPP's.
+    pub ratio: f64,
+    /// The unit's p-f ADPF.
+    pub adpf: Adpf,
+}
+
+/// Polynomial product, coefficients in ascending powers.
+fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; a.len() + b.len() - 1];
+    for (i, x) in a.iter().enumerate() {
+        for (j, y) in b.iter().enumerate() {
+            out[i + j] += x * y;
+        }
+    }
+    out
+}
+
+impl Frame {
+    /// A unit of `s_rated` in a DVPP of `s_dvpp` with the EMT DER's `T_des` defaults
+    /// (`Tdes.H` 5.55, `Tdes.D` 33.33) and the p-f ADPF `adpf`.
+    pub fn unit(s_rated: f64, s_dvpp: f64, adpf: Adpf) -> Frame {
+        Frame {
+            h: 5.55,
+            d: 33.33,
+            ratio: s_rated / s_dvpp,
+            adpf,
+        }
+    }
+
+    /// `G(s) = ratio/(m(s) (H s + D))`, from the unit's power (pu on its rating) to `-Δf`, as
+    /// (numerator, denominator), ascending powers of `s` in seconds.
+    fn transfer(&self) -> (Vec<f64>, Vec<f64>) {
+        let t_pf = [self.d, self.h];
+        match &self.adpf {
+            Adpf::Static(mu) => (vec![self.ratio], vec![mu * self.d, mu * self.h]),
+            Adpf::LowPass { mu, tau } => (
+                vec![self.ratio, self.ratio * tau],
+                vec![mu * self.d, mu * self.h],
+            ),
+            Adpf::Complement(shares) => {
+                let mut p = vec![1.0];
+                for &(_, tau) in shares {
+                    p = poly_mul(&p, &[1.0, tau]);
+                }
+                let mut m = p.clone();
+                for (j, &(mu_j, _)) in shares.iter().enumerate() {
+                    let mut pj = vec![1.0];
+                    for (k, &(_, tau)) in shares.iter().enumerate() {
+                        if k != j {
+                            pj = poly_mul(&pj, &[1.0, tau]);
+                        }
+                    }
+                    for (c, x) in m.iter_mut().zip(&pj) {
+                        *c -= mu_j * x;
+                    }
+                }
+                let num: Vec<f64> = p.iter().map(|c| c * self.ratio).collect();
+                (num, poly_mul(&m, &t_pf))
+            }
+        }
+    }
+
+    /// `G` in pu time (`s = ω_b s̃`) as a state space `(A, B, C, D)` in controllable canonical
+    /// form: `z' = A z + B Δp`, `-Δf = C z + D Δp`.
+    pub fn state_space(&self, omega_b: f64) -> (DMatrix<f64>, DVector<f64>, DVector<f64>, f64) {
+        let (num, den) = self.transfer();
+        let scale = |c: &[f64]| -> Vec<f64> {
+            c.iter()
+                .enumerate()
+                .map(|(k, x)| x * omega_b.powi(k as i32))
+                .collect()
+        };
+        let (mut num, den) = (scale(&num), scale(&den));
+        let n = den.len() - 1;
+        let lead = den[n];
+        let a_coef: Vec<f64> = den.iter().map(|x| x / lead).collect();
+        num.resize(n + 1, 0.0);
+        let d = num[n] / lead;
+        let mut a = DMatrix::zeros(n, n);
+        for i in 0..n - 1 {
+            a[(i, i + 1)] = 1.0;
+        }
+        for k in 0..n {
+            a[(n - 1, k)] = -a_coef[k];
+        }
+        let mut b = DVector::zeros(n);
+        b[n - 1] = 1.0;
+        let c = DVector::from_iterator(n, (0..n).map(|k| num[k] / lead - d * a_coef[k]));
+        (a, b, c, d)
+    }
+}
+
+impl Plant {
+    /// The plant at `(mu, grid)` with the frame appended (and no performance outputs on it): the
+    /// states of `G`, then `δ`. `Δf = -(C z + D Δp)` turns the filter's dq equations and enters
+    /// the alignment's integral through the stabilizer, `δ` turns the source's voltage in the
+    /// frame, and the frame follows the measured active power.
+    pub fn with_frame(spec: &DesignSpec, mu: f64, grid: Grid, frame: &Frame) -> Plant {
+        let p = Plant::at(spec, mu, grid);
+        let wb = spec.omega_b();
+        let (ag, bg, cg, dg) = frame.state_space(wb);
+        let ng = ag.nrows();
+        let (n, delta) = (N_STATES + ng + 1, N_STATES + ng);
+        let op = OperatingPoint::of(spec);
+        let d = &spec.data;
+        let mut a = DMatrix::zeros(n, n);
+        a.view_mut((0, 0), (N_STATES, N_STATES)).copy_from(&p.a);
+        // δ: Δv_s = -j v_s0 Δδ, v_s0 the source's voltage behind the grid impedance.
+        let z_i = c_mul(op.i_g, grid.r_g(d.l_t), grid.l_g(d.l_t));
+        let v_s = op.v_g - z_i;
+        for i in 0..N_STATES {
+            a[(i, delta)] = p.b1[(i, 0)] * v_s.q - p.b1[(i, 1)] * v_s.d;
+        }
+        // Δp over the filter states: p = v̂_g · i_g with v̂_g = v_c - (R_t + jL_t) i_g.
+        let (v, i) = (op.v_g, op.i_g);
+        let dp = [
+            0.0,
+            0.0,
+            i.d,
+            i.q,
+            v.d - d.r_t * i.d - d.l_t * i.q,
+            v.q + d.l_t * i.d - d.r_t * i.q,
+        ];
+        // Δf as a row over the states: -(D Δp + C z).
+        let mut df = DVector::zeros(n);
+        for (j, dpj) in dp.iter().enumerate() {
+            df[j] = -dg * dpj;
+        }
+        for k in 0..ng {
+            df[N_STATES + k] = -cg[k];
+        }
+        // G's states follow Δp.
+        a.view_mut((N_STATES, N_STATES), (ng, ng)).copy_from(&ag);
+        for k in 0..ng {
+            for (j, dpj) in dp.iter().enumerate() {
+                a[(N_STATES + k, j)] = bg[k] * dpj;
+            }
+        }
+        // Δf: the filter's rotation terms (affine in the frame's speed), the stabilizer in the
+        // alignment's integral (ξ_w' = Δw_q - k_a Δf), and δ' = Δf.
+        let series = grid.series(d);
+        let (a1, _) = Lcl::continuous(&series, wb, 1.0);
+        let (a2, _) = Lcl::continuous(&series, wb, 2.0);
+        let x0 = DVector::from_column_slice(&[
+            op.i_f.d, op.i_f.q, op.v_c.d, op.v_c.q, op.i_g.d, op.i_g.q,
+        ]);
+        let rot = (a2 - a1) * x0 / wb;
+        for col in 0..n {
+            for r in 0..6 {
+                a[(r, col)] += rot[r] * df[col];
+            }
+            a[(10, col)] -= spec.stabilizer * df[col];
+            a[(delta, col)] += df[col];
+        }
+        let pad = |m: &DMatrix<f64>| {
+            let mut out = DMatrix::zeros(n, m.ncols());
+            out.view_mut((0, 0), (N_STATES, m.ncols())).copy_from(m);
+            out
+        };
+        let mut c1 = DMatrix::zeros(p.c1.nrows(), n);
+        c1.view_mut((0, 0), (p.c1.nrows(), N_STATES))
+            .copy_from(&p.c1);
+        Plant {
+            a,
+            b1: pad(&p.b1),
+            b2: pad(&p.b2),
+            c1,
+            d12: p.d12,
+        }
     }
 }
 
@@ -354,13 +650,135 @@ mod tests {
         }
     }
 
+    /// The reference row reads `v_mv = v_c - R_t i_g - L_t di_g/dt̃ - j L_t i_g` with `di_g/dt̃`
+    /// from the series path's own equation: the divider form in `Plant::at` is that.
+    #[test]
+    fn the_reference_reads_the_mv_voltage_behind_the_grid_impedance() {
+        let spec = DesignSpec::default();
+        let d = &spec.data;
+        let grid = Grid::behind(d.l_t, 0.05, 0.3);
+        let p = Plant::at(&spec, 1.0, grid);
+        let op = OperatingPoint::of(&spec);
+        let dir = op.v_g * (1.0 / op.v_g.norm());
+        let gain = -spec.k_q / (spec.tau_q * spec.omega_b());
+        // A state and a source voltage, arbitrary.
+        let x = DVector::from_fn(N_STATES, |i, _| ((i * 7 + 3) % 11) as f64 / 10.0 - 0.4);
+        let w = DVector::from_column_slice(&[0.3, -0.2]);
+        let dx = &p.a * &x + &p.b1 * &w;
+        let v_c = Dq { d: x[2], q: x[3] };
+        let i_g = Dq { d: x[4], q: x[5] };
+        let di = Dq { d: dx[4], q: dx[5] };
+        let v_mv = v_c - c_mul(i_g, d.r_t, d.l_t) - di * d.l_t;
+        let expected =
+            gain * (dir.d * v_mv.d + dir.q * v_mv.q) - x[8] / (spec.tau_q * spec.omega_b());
+        assert!(
+            (dx[8] - expected).abs() < 1e-9 * expected.abs().max(1.0),
+            "{} {expected}",
+            dx[8]
+        );
+        // On the stiff grid the source itself.
+        let s = Plant::at(&spec, 1.0, Grid::STIFF);
+        for j in 0..6 {
+            assert_eq!(s.a[(8, j)], 0.0);
+        }
+    }
+
+    /// Multi-affine in `(μ, θ, φ)`: the plant at an inner point is the corners' combination
+    /// with the weights of multilinear interpolation.
+    #[test]
+    fn the_plant_is_multi_affine_in_mu_theta_phi() {
+        let spec = DesignSpec::default();
+        let (mu, th, ph) = (0.3, 0.55, 0.07);
+        let at = |m: f64, t: f64, f: f64| Plant::at(&spec, m, Grid { theta: t, phi: f });
+        let (m0, m1, t0, t1, f0, f1) = (0.0, 1.0, 0.2, 1.0, 0.0, 0.1);
+        let lm = (mu - m0) / (m1 - m0);
+        let lt = (th - t0) / (t1 - t0);
+        let lf = (ph - f0) / (f1 - f0);
+        let mut a = DMatrix::zeros(N_STATES, N_STATES);
+        let mut b1 = DMatrix::zeros(N_STATES, N_DISTURBANCES);
+        for (m, wm) in [(m0, 1.0 - lm), (m1, lm)] {
+            for (t, wt) in [(t0, 1.0 - lt), (t1, lt)] {
+                for (f, wf) in [(f0, 1.0 - lf), (f1, lf)] {
+                    let p = at(m, t, f);
+                    a += p.a * (wm * wt * wf);
+                    b1 += p.b1 * (wm * wt * wf);
+                }
+            }
+        }
+        let p = at(mu, th, ph);
+        assert!(
+            (&a - &p.a).amax() < 1e-9 * p.a.amax(),
+            "{}",
+            (&a - &p.a).amax()
+        );
+        assert!((&b1 - &p.b1).amax() < 1e-9 * p.b1.amax());
+        assert_eq!(at(0.0, 0.2, 0.1).b2, at(1.0, 1.0, 0.0).b2);
+        assert_eq!(at(0.0, 0.2, 0.1).c1, at(1.0, 1.0, 0.0).c1);
+    }
+
+    /// The frame's state follows the linearized `p = v̂_g · i_g` (finite differences), a
+    /// source turned by `δ` moves the filter as the disturbance `-j v_s δ` does, and the
+    /// frame's transfer function is `ratio/(m(s) (H s + D))` at a test frequency for each ADPF.
+    #[test]
+    fn the_frame_reads_the_linearized_power_and_turns_the_source() {
+        let spec = DesignSpec::default();
+        let op = OperatingPoint::of(&spec);
+        let d = &spec.data;
+        let frame = Frame::unit(60.0, 96.0, Adpf::Static(1.0));
+        let p = Plant::with_frame(&spec, 0.5, Grid::STIFF, &frame);
+        let power = |x: &[f64; 6]| {
+            let v_c = Dq { d: x[2], q: x[3] };
+            let i_g = Dq { d: x[4], q: x[5] };
+            (v_c - c_mul(i_g, d.r_t, d.l_t)).p(i_g)
+        };
+        let x0 = [op.i_f.d, op.i_f.q, op.v_c.d, op.v_c.q, op.i_g.d, op.i_g.q];
+        for j in 0..6 {
+            let mut x = x0;
+            x[j] += 1e-7;
+            let fd = (power(&x) - power(&x0)) / 1e-7;
+            assert!((p.a[(N_STATES, j)] - fd).abs() < 1e-5, "p row {j}");
+        }
+        let s = Plant::at(&spec, 0.5, Grid::STIFF);
+        for i in 0..N_STATES {
+            let want = s.b1[(i, 0)] * op.v_g.q - s.b1[(i, 1)] * op.v_g.d;
+            assert!((p.a[(i, N_STATES + 1)] - want).abs() < 1e-12);
+        }
+        let wb = spec.omega_b();
+        let w = 2.0 * std::f64::consts::PI * 3.0;
+        let jw = nalgebra::Complex::new(0.0, w);
+        let one = nalgebra::Complex::new(1.0, 0.0);
+        for adpf in [
+            Adpf::Static(0.4),
+            Adpf::LowPass { mu: 0.38, tau: 1.5 },
+            Adpf::Complement(vec![(0.38, 1.5), (0.4, 0.6)]),
+        ] {
+            let m = match &adpf {
+                Adpf::Static(mu) => one * *mu,
+                Adpf::LowPass { mu, tau } => one * *mu / (one + jw * *tau),
+                Adpf::Complement(sh) => sh
+                    .iter()
+                    .fold(one, |acc, &(mu, tau)| acc - one * mu / (one + jw * tau)),
+            };
+            let f = Frame::unit(46.0, 96.0, adpf);
+            let want = one * f.ratio / (m * (jw * f.h + f.d));
+            let (a, b, c, dd) = f.state_space(wb);
+            let n = a.nrows();
+            let s_pu = nalgebra::Complex::new(0.0, w / wb);
+            let mat = DMatrix::<nalgebra::Complex<f64>>::from_diagonal_element(n, n, s_pu)
+                - a.map(|v| one * v);
+            let x = mat.lu().solve(&b.map(|v| one * v)).unwrap();
+            let got = (0..n).map(|k| x[k] * c[k]).sum::<nalgebra::Complex<f64>>() + dd;
+            assert!((got - want).norm() < 1e-9 * want.norm(), "{got} {want}");
+        }
+    }
+
     #[test]
     fn only_the_reference_row_of_b1_depends_on_mu_and_linearly() {
         let spec = DesignSpec::default();
         let (p0, p1, ph) = (
-            Plant::at(&spec, 0.0),
-            Plant::at(&spec, 1.0),
-            Plant::at(&spec, 0.5),
+            Plant::at(&spec, 0.0, Grid::STIFF),
+            Plant::at(&spec, 1.0, Grid::STIFF),
+            Plant::at(&spec, 0.5, Grid::STIFF),
         );
         let diff = &p1.b1 - &p0.b1;
         for i in 0..N_STATES {

@@ -9,13 +9,16 @@
 //! [ C1 X + D12 W                 0    -γ I             ]
 //! ```
 //!
-//! `B1` is linear in μ (the reference model's input gain) and `A`, `B2`, `C1`, `D12` do not
-//! depend on it, so the left-hand side is affine in `(μ, W)` jointly: imposed at both ends `μ_min`, `μ_max` with one `X` and a `W_k` each, it
-//! holds for every μ between with `W(μ)` the same convex combination of the `W_k`, and so for
-//! `K(μ) = W(μ) X⁻¹`, the linear interpolation of the vertex gains `K_k = W_k X⁻¹`. Minimizing
-//! `γ` over `(γ, X, W_0, W_1)` is one semidefinite program, solved by clarabel.
+//! The plant is multi-affine in `(μ, θ, φ)` (μ the reference model's input gain, `θ`, `φ` the
+//! grid behind the transformer, [`Grid`]) and `B2`, `C1`, `D12` do not depend on them, so with
+//! `W` affine in μ the left-hand side is multi-affine in `(μ, θ, φ)`: on the box it is a convex
+//! combination of its values at the corners. Imposed at every corner with one `X`, and a `W_k`
+//! per end of μ (the grid is not measured, so `W` does not depend on it), it holds on the whole
+//! box with `W(μ)` the same combination of the `W_k`, and so for `K(μ) = W(μ) X⁻¹`, the linear
+//! interpolation of the vertex gains `K_k = W_k X⁻¹`. Minimizing `γ` over `(γ, X, W_0, W_1)` is
+//! one semidefinite program, solved by clarabel.
 
-use crate::plant::{DesignSpec, Plant, N_DISTURBANCES, N_INPUTS, N_OUTPUTS, N_STATES};
+use crate::plant::{DesignSpec, Grid, Plant, N_DISTURBANCES, N_INPUTS, N_OUTPUTS, N_STATES};
 use crate::sdp::{minimize, Lmi};
 use nalgebra::DMatrix;
 
@@ -149,12 +152,20 @@ impl Design {
 /// Solve the LPV H∞ problem of `spec`.
 pub fn synthesize(spec: &DesignSpec) -> Result<Design, String> {
     let mu = [spec.mu_min, spec.mu_max];
-    let plants = [Plant::at(spec, mu[0]), Plant::at(spec, mu[1])];
+    let plants: Vec<(usize, Grid, Plant)> = (0..2)
+        .flat_map(|k| {
+            spec.grid_corners()
+                .into_iter()
+                .map(move |g| (k, g, Plant::at(spec, mu[k], g)))
+        })
+        .collect();
     let layout = Layout::for_plant(2);
     let mut lmis: Vec<Lmi> = Vec::new();
-    for (k, plant) in plants.iter().enumerate() {
+    for (k, grid, plant) in plants.iter() {
+        let k = *k;
+        let at = format!("mu = {}, theta = {}, phi = {}", mu[k], grid.theta, grid.phi);
         lmis.push(Lmi {
-            name: format!("bounded-real lemma at mu = {}", mu[k]),
+            name: format!("bounded-real lemma at {at}"),
             f: Box::new(move |x: &[f64]| {
                 brl_matrix(plant, layout.gamma(x), &layout.lyapunov(x), &layout.w(x, k))
             }),
@@ -162,7 +173,7 @@ pub fn synthesize(spec: &DesignSpec) -> Result<Design, String> {
         });
         let r = spec.pole_radius;
         lmis.push(Lmi {
-            name: format!("pole region at mu = {}", mu[k]),
+            name: format!("pole region at {at}"),
             f: Box::new(move |x: &[f64]| {
                 disk_matrix(plant, r, &layout.lyapunov(x), &layout.w(x, k))
             }),

@@ -458,28 +458,28 @@ fn option_b_against_option_a_at_the_default_reactive_droop() {
     }
 }
 
-/// How exactly option B needs the transformer: its reference model reads the MV-side voltage
-/// the controller computes with `L_t di_g/dt`, and at μ = 1 (reference gain 160 on the rating)
-/// an error in the controller's `L_t` puts back part of the loop the fix removed. With the
-/// controller's `L_t` 2 % low the dip of
-/// [`option_b_is_stable_over_the_range_of_mu_at_the_default_reactive_droop`] still settles within
-/// 1.5 `I_max`; 2 % high, the current passes 1.5 `I_max` 13 ms after the dip and the unit trips
-/// (docs/hinf.md §8). This pins that limitation: the test fails when a design removes it.
+/// How exactly option B needs the transformer: its reactive reference model reads the MV-side
+/// voltage the controller computes with `L_t di_g/dt`, and at μ = 1 (reference gain 160 on the
+/// rating) an error in the controller's `L_t` puts back part of the loop through the grid's
+/// voltage. With the design over the box of grids the dip of
+/// [`option_b_is_stable_over_the_range_of_mu_at_the_default_reactive_droop`] settles with the
+/// controller's `L_t` 10 % low; 5 % high, the current passes 1.5 `I_max` within 20 ms of the dip
+/// and the unit trips (docs/hinf.md §8). This pins that limitation: the test fails when a
+/// design removes it.
 #[test]
-fn option_b_needs_the_transformer_within_2_percent_low_and_trips_at_2_percent_high() {
-    let low = run_dip_with(1, 0.01, -2e-3, 3.0, &[("L_t", 0.098)]);
+fn option_b_needs_the_transformer_within_10_percent_low_and_trips_at_5_percent_high() {
+    let low = run_dip_with(1, 0.01, -2e-3, 3.0, &[("L_t", 0.09)]);
     assert_eq!((low.limited_at, low.tripped_at), (None, None));
     let f = dip_figures(&low, 0.192);
     println!(
-        "option B, Dq 0.01, the controller's L_t 0.098: largest |p - p0| {:.3} pu, largest |i_f| {:.3} pu, from 1 to 1.5 s {:.1e} pu, over the last 0.5 s {:.1e} pu; rms |q - q_ref| {:.3e} pu",
+        "option B, Dq 0.01, the controller's L_t 0.09: largest |p - p0| {:.3} pu, largest |i_f| {:.3} pu, from 1 to 1.5 s {:.1e} pu, over the last 0.5 s {:.1e} pu; rms |q - q_ref| {:.3e} pu",
         f.p_peak, low.i_peak, f.p_mid, f.p_last, f.rms_own
     );
-    assert!(f.p_last < 0.35 * f.p_mid, "{} {}", f.p_last, f.p_mid);
-    assert!(f.p_last < 1e-2, "{}", f.p_last);
-    assert!(low.i_peak < 1.5 * 1.2, "{}", low.i_peak);
-    let high = run_dip_with(1, 0.01, -2e-3, 3.0, &[("L_t", 0.102)]);
+    assert!(f.p_last < 1e-5, "{}", f.p_last);
+    assert!(low.i_peak < 1.2, "{}", low.i_peak);
+    let high = run_dip_with(1, 0.01, -2e-3, 3.0, &[("L_t", 0.105)]);
     println!(
-        "the controller's L_t 0.102: tripped at {:?} s, largest |i_f| before {:.3} pu",
+        "the controller's L_t 0.105: tripped at {:?} s, largest |i_f| before {:.3} pu",
         high.tripped_at, high.i_peak
     );
     assert!(
@@ -487,6 +487,35 @@ fn option_b_needs_the_transformer_within_2_percent_low_and_trips_at_2_percent_hi
         "{:?}",
         high.tripped_at
     );
+}
+
+/// The frame (the p-f reference model, whose gain on the unit's power is `1/μ_p`) swings
+/// against the grid; option B's gains were designed with it fixed, and its stabilizer (the
+/// alignment's integral follows `Δw_q - k_a Δf`) damps it. On the stiff grid after the 0.2 %
+/// dip at the default reactive droop the swing has died out by the second second for every p-f
+/// dc gain down to the grid-forming floor 0.05 (without the stabilizer, the same gains let it
+/// grow on this grid already at `mu_p` = 1 at `Tdes.Dq` = 1, and the unit tripped at 0.84 s at
+/// `mu_p` = 0.3 with the stiff grid's design: docs/hinf.md §8).
+#[test]
+fn option_b_damps_the_frame_down_to_the_p_f_floor() {
+    for mu_p in [1.0, 0.3, 0.1, 0.05] {
+        let r = run_dip_with(1, 0.01, -2e-3, 3.0, &[("mu_p", mu_p)]);
+        assert_eq!((r.limited_at, r.tripped_at), (None, None), "mu_p {mu_p}");
+        let w = (1.0 / H) as usize;
+        let s: Vec<f64> =
+            r.p.chunks(w)
+                .map(|c| c.iter().map(|x| (x - 0.3).abs()).fold(0.0, f64::max))
+                .collect();
+        println!(
+            "option B, mu_p {mu_p}: largest |p - p0| per second {}; largest |i_f| {:.3} pu",
+            s.iter()
+                .map(|x| format!("{x:.1e}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            r.i_peak
+        );
+        assert!(s[1] < 2e-3 * s[0] && s[2] < 1e-6, "mu_p {mu_p}: {s:?}");
+    }
 }
 
 /// Option B has no current limit of its own: a unit driven far beyond its rating stops with

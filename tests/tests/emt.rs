@@ -114,8 +114,28 @@ fn nrmse(a: &[f64], b: &[f64]) -> f64 {
 }
 
 #[test]
+fn emt_island_hinf_settles_at_the_droop_law_and_conserves_energy() {
+    island_droop_and_energy("emt_island_hinf");
+}
+
+/// Measured: PCC 0.86 %; the units' powers 1.82 % (wind), 1.77 % (PV), 1.23 % (BESS).
+#[test]
 fn emt_thevenin_gives_the_frequency_and_powers_of_its_phasor_twin() {
-    let emt = run("emt_thevenin");
+    thevenin_against_twin("emt_thevenin", 0.05);
+}
+
+/// The PV and the BESS on option B (the wind on option A, docs/hinf.md §8). Measured: PCC
+/// 1.15 %; the units' powers 1.58 % (wind), 4.21 % (PV), 11.0 % (BESS: option B's fast reactive
+/// tracking moves its active power in the first 100 ms after the step, §9).
+#[test]
+fn emt_thevenin_hinf_gives_the_frequency_and_powers_of_its_phasor_twin() {
+    thevenin_against_twin("emt_thevenin_hinf", 0.15);
+}
+
+/// The Thevenin scenario `name` against `phasor_thevenin`: the PCC frequency within 3 % NRMSE,
+/// each unit settling within 5 % of the twin's peak change and its power within `units` NRMSE.
+fn thevenin_against_twin(name: &str, units: f64) {
+    let emt = run(name);
     let phasor = run("phasor_thevenin");
     // The EMT run at its 50 µs, sampled at the phasor run's 1 ms.
     let every = 20;
@@ -164,9 +184,8 @@ fn emt_thevenin_gives_the_frequency_and_powers_of_its_phasor_twin() {
         );
         // Where each unit settles, within 5 % of the phasor twin's peak change.
         assert!((p_emt[n] - p_ph[n]).abs() < 0.05 * peak, "unit {k}");
-        // The trajectories within 5 % NRMSE: measured 1.82 % (wind), 1.77 % (PV), 1.23 % (BESS).
         let e = nrmse(&p_emt, &p_ph);
-        assert!(e < 0.05, "unit {k}: dp NRMSE {:.2} %", e * 100.0);
+        assert!(e < units, "unit {k}: dp NRMSE {:.2} %", e * 100.0);
         let name = ["wind", "PV", "BESS"][k - 1];
         p_panel = p_panel
             .series(
@@ -184,13 +203,15 @@ fn emt_thevenin_gives_the_frequency_and_powers_of_its_phasor_twin() {
     }
     // The figure of docs/emt.md §10, written where DVPP_FIGURE_DIR says (tests/figures).
     if let Some(dir) = std::env::var_os("DVPP_FIGURE_DIR") {
-        let path = std::path::Path::new(&dir).join("emt_thevenin.svg");
-        Figure::new("Case study I's DVPP on a Thevenin equivalent: EMT (50 µs) against phasor (1 ms), 28 MW step")
-            .panel(f_panel)
-            .panel(p_panel)
-            .columns(1)
-            .save(&path)
-            .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+        let path = std::path::Path::new(&dir).join(format!("{name}.svg"));
+        Figure::new(format!(
+            "{name}: EMT (50 µs) against phasor (1 ms), 28 MW step"
+        ))
+        .panel(f_panel)
+        .panel(p_panel)
+        .columns(1)
+        .save(&path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
         println!("wrote {}", path.display());
     }
 }

@@ -5,20 +5,22 @@
 //! ```text
 //! x = [Δi_f, Δv_c, Δi_g, Δv_m,prev, Δq_ref, ξ_q, ξ_w]          (the order of hinf_gains::STATES)
 //! v_m = v_m0 + K(μ) x,   limited to |v_m| ≤ v_m,max
-//! ξ_q += ω_b h (Δq - Δq_ref),   ξ_w += ω_b h Δw_q                (held while the limit acts)
+//! ξ_q += ω_b h (Δq - Δq_ref),   ξ_w += ω_b h (Δw_q - k_a Δf)     (held while the limit acts)
 //! ```
 //!
 //! `v_m,prev` is the command of the previous sample, which the plant applies now (it stands in
 //! for the design model's delay lag); `Δq_ref` the local reactive reference model's output and
 //! `Δq` the measured reactive power, both pu on the converter's rating; `w_q` the q axis of the
-//! voltage behind the virtual resistance, `v_c + r_v i_g`. `K(μ)` interpolates the vertex gains
+//! voltage behind the virtual resistance, `v_c + r_v i_g`; `Δf` the frame's frequency deviation
+//! and `k_a` the frame stabilizer [`STABILIZER`], which lets that voltage lead the frame while
+//! the frame swings against the grid (the design model holds the frame fixed). `K(μ)` interpolates the vertex gains
 //! linearly in the equivalent dc gain `μ k_q/K_Q`, where `k_q = S_dvpp/(S_rated D_q)` is this
 //! unit's reference gain and [`K_Q`] the design's: the reference model's
 //! input gain `k_q μ` is what the design scheduled on. Docs: `docs/hinf.md`.
 
 use super::filter::ConverterData;
 use super::frame::Dq;
-use super::hinf_gains::{K_MU_MAX, K_MU_MIN, K_Q, MU_MAX, MU_MIN, N_INPUTS, N_STATES};
+use super::hinf_gains::{K_MU_MAX, K_MU_MIN, K_Q, MU_MAX, MU_MIN, N_INPUTS, N_STATES, STABILIZER};
 use super::inner::FilterMeasurement;
 use serde::{Deserialize, Serialize};
 
@@ -85,7 +87,8 @@ impl HinfLoop {
 
     /// The converter voltage for this sample: `m` the filter measurement, `dq` and `dq_ref` the
     /// reactive power's and its reference's deviations (pu on the rating), `mu_q` the unit's
-    /// reactive dc gain, `v_m_max` the largest converter voltage, `omega_b` (rad/s), `h` (s).
+    /// reactive dc gain, `df` the frame's frequency deviation (pu), `v_m_max` the largest
+    /// converter voltage, `omega_b` (rad/s), `h` (s).
     #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
@@ -93,6 +96,7 @@ impl HinfLoop {
         dq: f64,
         dq_ref: f64,
         mu_q: f64,
+        df: f64,
         v_m_max: f64,
         omega_b: f64,
         h: f64,
@@ -122,7 +126,7 @@ impl HinfLoop {
         } else {
             let w_q = m.v_c.q + self.r_v * m.i_g.q;
             self.xi_q += omega_b * h * (dq - dq_ref);
-            self.xi_w += omega_b * h * (w_q - self.w_q0);
+            self.xi_w += omega_b * h * (w_q - self.w_q0 - STABILIZER * df);
             raw
         };
         self.v_m
@@ -138,9 +142,16 @@ mod tests {
 
     #[test]
     fn the_gain_interpolates_the_vertices() {
+        // At the ends exactly the vertices, to rounding (`a + (b - a)` need not be `b`).
+        let close = |k: [[f64; N_STATES]; N_INPUTS], want: [[f64; N_STATES]; N_INPUTS]| {
+            k.iter()
+                .flatten()
+                .zip(want.iter().flatten())
+                .all(|(a, b)| (a - b).abs() <= 1e-15 * b.abs().max(1.0))
+        };
         assert_eq!(gain(MU_MIN), K_MU_MIN);
-        assert_eq!(gain(MU_MAX), K_MU_MAX);
-        assert_eq!(gain(MU_MAX + 5.0), K_MU_MAX);
+        assert!(close(gain(MU_MAX), K_MU_MAX));
+        assert!(close(gain(MU_MAX + 5.0), K_MU_MAX));
         let mid = gain(0.5 * (MU_MIN + MU_MAX));
         assert!((mid[1][3] - 0.5 * (K_MU_MIN[1][3] + K_MU_MAX[1][3])).abs() < 1e-15);
     }
@@ -177,7 +188,7 @@ mod tests {
         for k in 0..20_000 {
             let v_g = if k >= 2000 { v_g0 * 0.99 } else { v_g0 };
             let dq_ref = if k >= 2000 { 0.2 } else { 0.0 };
-            let next = hl.step(&meas(&x), q_of(&x) - q0, dq_ref, 0.5, 1.5, wb, h);
+            let next = hl.step(&meas(&x), q_of(&x) - q0, dq_ref, 0.5, 0.0, 1.5, wb, h);
             x = lcl.step(&x, v_m, v_g);
             v_m = next;
             if k < 2000 {

@@ -397,6 +397,7 @@ impl DerEmt {
                             (q - rt.q0) / to_base,
                             (rt.q_ref - rt.q0) / to_base,
                             rt.vq.mu_q(),
+                            rt.df,
                             v_m_max,
                             omega_b,
                             h,

@@ -285,11 +285,15 @@ mod tests {
     #[test]
     fn emt_scenarios_wire_outputs_to_inputs() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR"));
-        assert_wired(&dir.join("scenarios").join("emt_island.toml"), 16);
-        assert_wired(
-            &dir.join("scenarios").join("emt_thevenin.toml"),
-            3 * 16 + 3 * 5 + 2 + 2 + 4,
-        );
+        for name in ["emt_island", "emt_island_hinf"] {
+            assert_wired(&dir.join("scenarios").join(format!("{name}.toml")), 16);
+        }
+        for name in ["emt_thevenin", "emt_thevenin_hinf"] {
+            assert_wired(
+                &dir.join("scenarios").join(format!("{name}.toml")),
+                3 * 16 + 3 * 5 + 2 + 2 + 4,
+            );
+        }
     }
 
     #[test]

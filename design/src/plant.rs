@@ -71,7 +71,7 @@ impl Default for Weights {
             alignment: 1.0,
             alignment_corner: 0.5,
             effort: 0.005,
-            rolloff: 1.0,
+            rolloff: 0.5,
         }
     }
 }
@@ -184,7 +184,8 @@ impl Default for DesignSpec {
     /// (about 0.01 + j0.08 pu: θ 0.56, φ 0.06) lies inside; the island's R-L load (1.9 + j0.39 pu:
     /// θ 0.21, φ 4.0) outside in φ, which the checks measure apart (a box reaching φ = 4 has no
     /// solution: its corner θ = 1, φ = 4 is a source behind 0.4 pu of pure resistance). The
-    /// frame stabilizer 12 (docs/hinf.md §8).
+    /// frame stabilizer 9, the middle of the 6 to 11 that pass the frame check; the roll-off 0.5
+    /// (docs/hinf.md §3, §8.2).
     fn default() -> Self {
         DesignSpec {
             data: ConverterData::PAPER,
@@ -201,7 +202,7 @@ impl Default for DesignSpec {
             mu_max: 1.0,
             weights: Weights::default(),
             pole_radius: 50.0,
-            stabilizer: 12.0,
+            stabilizer: 9.0,
             theta_min: 0.2,
             phi_max: 0.1,
         }
@@ -457,6 +458,15 @@ impl Frame {
         }
     }
 
+    /// The stabilizer the controller gives this frame: `spec.stabilizer` for a frame with
+    /// inertia, 0 for a low-pass ADPF's, whose frequency follows the unit's power at once.
+    pub fn stabilizer(&self, spec: &DesignSpec) -> f64 {
+        match self.adpf {
+            Adpf::LowPass { .. } => 0.0,
+            _ => spec.stabilizer,
+        }
+    }
+
     /// `G(s) = ratio/(m(s) (H s + D))`, from the unit's power (pu on its rating) to `-Δf`, as
     /// (numerator, denominator), ascending powers of `s` in seconds.
     fn transfer(&self) -> (Vec<f64>, Vec<f64>) {
@@ -575,11 +585,13 @@ impl Plant {
             op.i_f.d, op.i_f.q, op.v_c.d, op.v_c.q, op.i_g.d, op.i_g.q,
         ]);
         let rot = (a2 - a1) * x0 / wb;
+        // The controller's stabilizer for this frame (none for a low-pass ADPF's, §8.2).
+        let k_a = frame.stabilizer(spec);
         for col in 0..n {
             for r in 0..6 {
                 a[(r, col)] += rot[r] * df[col];
             }
-            a[(10, col)] -= spec.stabilizer * df[col];
+            a[(10, col)] -= k_a * df[col];
             a[(delta, col)] += df[col];
         }
         let pad = |m: &DMatrix<f64>| {

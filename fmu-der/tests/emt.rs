@@ -492,8 +492,8 @@ fn option_b_needs_the_transformer_within_10_percent_low_and_trips_at_5_percent_h
 /// The frame (the p-f reference model, whose gain on the unit's power is `1/μ_p`) swings
 /// against the grid; option B's gains were designed with it fixed, and its stabilizer (the
 /// alignment's integral follows `Δw_q - k_a Δf`) damps it. On the stiff grid after the 0.2 %
-/// dip at the default reactive droop the swing has died out by the second second for every p-f
-/// dc gain down to the grid-forming floor 0.05 (without the stabilizer, the same gains let it
+/// dip at the default reactive droop the swing falls by at least 10⁴ within two seconds for
+/// every p-f dc gain down to the grid-forming floor 0.05 (without the stabilizer, the gains let it
 /// grow on this grid already at `mu_p` = 1 at `Tdes.Dq` = 1, and the unit tripped at 0.84 s at
 /// `mu_p` = 0.3 with the stiff grid's design: docs/hinf.md §8).
 #[test]
@@ -514,7 +514,8 @@ fn option_b_damps_the_frame_down_to_the_p_f_floor() {
                 .join(", "),
             r.i_peak
         );
-        assert!(s[1] < 2e-3 * s[0] && s[2] < 1e-6, "mu_p {mu_p}: {s:?}");
+        // Down by at least 10⁴ within two seconds: a decay faster than 4.6/s.
+        assert!(s[2] < 1e-4 * s[0], "mu_p {mu_p}: {s:?}");
     }
 }
 

@@ -124,9 +124,9 @@ fn emt_thevenin_gives_the_frequency_and_powers_of_its_phasor_twin() {
     thevenin_against_twin("emt_thevenin", 0.05);
 }
 
-/// The PV and the BESS on option B (the wind on option A, docs/hinf.md §8). Measured: PCC
-/// 1.15 %; the units' powers 1.58 % (wind), 4.21 % (PV), 11.0 % (BESS: option B's fast reactive
-/// tracking moves its active power in the first 100 ms after the step, §9).
+/// Every unit on option B (docs/hinf.md §8.4). Measured: PCC 1.09 %; the units' powers 7.53 %
+/// (wind), 3.26 % (PV), 11.1 % (BESS: option B's fast reactive tracking moves the active power in
+/// the first 100 ms after the step, §9).
 #[test]
 fn emt_thevenin_hinf_gives_the_frequency_and_powers_of_its_phasor_twin() {
     thevenin_against_twin("emt_thevenin_hinf", 0.15);

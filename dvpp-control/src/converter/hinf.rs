@@ -12,7 +12,7 @@
 //! for the design model's delay lag); `Δq_ref` the local reactive reference model's output and
 //! `Δq` the measured reactive power, both pu on the converter's rating; `w_q` the q axis of the
 //! voltage behind the virtual resistance, `v_c + r_v i_g`; `Δf` the frame's frequency deviation
-//! and `k_a` the frame stabilizer [`STABILIZER`], which lets that voltage lead the frame while
+//! and `k_a` the frame stabilizer ([`STABILIZER`](super::hinf_gains::STABILIZER) for a frame with inertia), which lets that voltage lead the frame while
 //! the frame swings against the grid (the design model holds the frame fixed). `K(μ)` interpolates the vertex gains
 //! linearly in the equivalent dc gain `μ k_q/K_Q`, where `k_q = S_dvpp/(S_rated D_q)` is this
 //! unit's reference gain and [`K_Q`] the design's: the reference model's
@@ -20,7 +20,7 @@
 
 use super::filter::ConverterData;
 use super::frame::Dq;
-use super::hinf_gains::{K_MU_MAX, K_MU_MIN, K_Q, MU_MAX, MU_MIN, N_INPUTS, N_STATES, STABILIZER};
+use super::hinf_gains::{K_MU_MAX, K_MU_MIN, K_Q, MU_MAX, MU_MIN, N_INPUTS, N_STATES};
 use super::inner::FilterMeasurement;
 use serde::{Deserialize, Serialize};
 
@@ -43,6 +43,7 @@ pub struct HinfLoop {
     v_m0: Dq,
     w_q0: f64,
     r_v: f64,
+    k_a: f64,
     k_ratio: f64,
     xi_q: f64,
     xi_w: f64,
@@ -53,13 +54,15 @@ pub struct HinfLoop {
 
 impl HinfLoop {
     /// A loop started in the steady state `m` with the converter voltage `v_m`, for a unit with
-    /// virtual resistance `r_v` and reference gain `k_q = S_dvpp/(S_rated D_q)`.
-    pub fn new(m: &FilterMeasurement, v_m: Dq, r_v: f64, k_q: f64) -> HinfLoop {
+    /// virtual resistance `r_v` and reference gain `k_q = S_dvpp/(S_rated D_q)`, with the frame
+    /// stabilizer `k_a` ([`STABILIZER`](super::hinf_gains::STABILIZER) for a frame with inertia, 0 for one without).
+    pub fn new(m: &FilterMeasurement, v_m: Dq, r_v: f64, k_q: f64, k_a: f64) -> HinfLoop {
         HinfLoop {
             x0: *m,
             v_m0: v_m,
             w_q0: m.v_c.q + r_v * m.i_g.q,
             r_v,
+            k_a,
             k_ratio: k_q / K_Q,
             xi_q: 0.0,
             xi_w: 0.0,
@@ -126,7 +129,7 @@ impl HinfLoop {
         } else {
             let w_q = m.v_c.q + self.r_v * m.i_g.q;
             self.xi_q += omega_b * h * (dq - dq_ref);
-            self.xi_w += omega_b * h * (w_q - self.w_q0 - STABILIZER * df);
+            self.xi_w += omega_b * h * (w_q - self.w_q0 - self.k_a * df);
             raw
         };
         self.v_m
@@ -136,7 +139,7 @@ impl HinfLoop {
 #[cfg(test)]
 mod tests {
     use super::super::filter::{Lcl, LclState};
-    use super::super::hinf_gains::{I_F0, I_G0, V_C0, V_M0};
+    use super::super::hinf_gains::{I_F0, I_G0, STABILIZER, V_C0, V_M0};
     use super::*;
     use std::f64::consts::PI;
 
@@ -182,7 +185,7 @@ mod tests {
             vg.q(x.i_g)
         };
         let q0 = q_of(&x);
-        let mut hl = HinfLoop::new(&meas(&x), dq(V_M0), 0.3, K_Q);
+        let mut hl = HinfLoop::new(&meas(&x), dq(V_M0), 0.3, K_Q, STABILIZER);
         let mut v_m = dq(V_M0);
         let (mut worst_flat, mut err) = (0.0f64, Vec::new());
         for k in 0..20_000 {

@@ -5,7 +5,7 @@ use crate::dc::damping_gain;
 use crate::layer::{self, PfReference};
 use crate::{err, positive, AdpfKind, Mode};
 use dvpp_control::converter::{
-    Abc, ConverterData, Dq, FilterMeasurement, HinfLoop, InnerDesign, InnerLoops, Pll,
+    hinf_gains, Abc, ConverterData, Dq, FilterMeasurement, HinfLoop, InnerDesign, InnerLoops, Pll,
 };
 use dvpp_control::VqModel;
 use fmi_export::{Context, ModelError, Store};
@@ -214,6 +214,13 @@ impl DerEmt {
                 v_m,
                 s[self.vi_r],
                 s[self.s_dvpp] / (s[self.s_rated] * s[self.dq]),
+                // The frame stabilizer damps a frame with inertia; a low-pass ADPF's frame
+                // follows the unit's power at once and the stabilizer would feed that back
+                // (docs/hinf.md §8.2).
+                match self.adpf_p.kind(s)? {
+                    AdpfKind::LowPass => 0.0,
+                    _ => hinf_gains::STABILIZER,
+                },
             )),
             (1, Mode::GridFollowing) => return Err(err(
                 "inner.kind",

@@ -80,11 +80,11 @@ pub fn continuous_abscissa(design: &Design, mu: f64, grid: Grid) -> f64 {
 }
 
 /// The closed loop as the controller runs it, one sample to the next: the filter sampled
-/// exactly at `spec.h` against `grid` (the source behind it held), the converter voltage the command of the previous
-/// sample (one sample of computation delay), the reference model sampled exactly with `Δ|v|`
-/// held (`v` the grid-voltage estimate with the transformer's `L_t di_g/dt` over the last
-/// sample), the integrals by the forward rule; the gain's delay-lag states fed with that
-/// previous command. State `[x_filter (6), u_prev (2), Δq_ref, ξ_q, ξ_w, v_c,prev (2),
+/// exactly at `spec.h` against `grid` (the source behind it held), the converter voltage the
+/// command of the previous sample (one sample of computation delay), the reference model sampled
+/// exactly with `Δ|v|` held (`v` the grid-voltage estimate with the transformer's `L_t di_g/dt`
+/// over the last sample), the integrals by the forward rule; the gain's delay-lag states fed
+/// with that previous command. State `[x_filter (6), u_prev (2), Δq_ref, ξ_q, ξ_w, v_c,prev (2),
 /// i_g,prev (2)]`.
 pub fn sampled_closed_loop(design: &Design, mu: f64, grid: Grid) -> DMatrix<f64> {
     let spec: &DesignSpec = &design.spec;
@@ -240,9 +240,9 @@ pub fn sigma_max(a: &DMatrix<f64>, b: &DMatrix<f64>, c: &DMatrix<f64>, omega: f6
     emb.symmetric_eigen().eigenvalues.max().max(0.0).sqrt()
 }
 
-/// The H∞ norm of the closed loop at `mu` on `grid` by a frequency sweep: `σ_max` on a logarithmic grid of
-/// 2000 frequencies from 1e-5 to 1e3 pu of `ω_b` (5e-4 Hz to 50 kHz at 50 Hz), then refined
-/// by golden-section search around the grid's peak. Returns the peak and its frequency (pu).
+/// The H∞ norm of the closed loop at `mu` on `grid` by a frequency sweep: `σ_max` on a
+/// logarithmic grid of 2000 frequencies from 1e-5 to 1e3 pu of `ω_b` (5e-4 Hz to 50 kHz at
+/// 50 Hz), then refined by golden-section search around the grid's peak. Returns the peak and its frequency (pu).
 pub fn hinf_sweep(design: &Design, mu: f64, grid: Grid) -> (f64, f64) {
     let (a, b, c) = closed_loop(design, mu, grid);
     sweep_peak(&a, &b, &c)

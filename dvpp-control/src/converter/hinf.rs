@@ -12,11 +12,12 @@
 //! for the design model's delay lag); `Δq_ref` the local reactive reference model's output and
 //! `Δq` the measured reactive power, both pu on the converter's rating; `w_q` the q axis of the
 //! voltage behind the virtual resistance, `v_c + r_v i_g`; `Δf` the frame's frequency deviation
-//! and `k_a` the frame stabilizer ([`STABILIZER`](super::hinf_gains::STABILIZER) for a frame with inertia), which lets that voltage lead the frame while
-//! the frame swings against the grid (the design model holds the frame fixed). `K(μ)` interpolates the vertex gains
-//! linearly in the equivalent dc gain `μ k_q/K_Q`, where `k_q = S_dvpp/(S_rated D_q)` is this
-//! unit's reference gain and [`K_Q`] the design's: the reference model's
-//! input gain `k_q μ` is what the design scheduled on. Docs: `docs/hinf.md`.
+//! and `k_a` the frame stabilizer ([`STABILIZER`](super::hinf_gains::STABILIZER) for a frame
+//! with inertia), which lets that voltage lead the frame while the frame swings against the grid
+//! (the design model holds the frame fixed). `K(μ)` interpolates the vertex gains linearly in the
+//! equivalent dc gain `μ k_q/K_Q`, where `k_q = S_dvpp/(S_rated D_q)` is this unit's reference
+//! gain and [`K_Q`] the design's: the reference model's input gain `k_q μ` is what the design
+//! scheduled on. Docs: `docs/hinf.md`.
 
 use super::filter::ConverterData;
 use super::frame::Dq;
@@ -55,7 +56,8 @@ pub struct HinfLoop {
 impl HinfLoop {
     /// A loop started in the steady state `m` with the converter voltage `v_m`, for a unit with
     /// virtual resistance `r_v` and reference gain `k_q = S_dvpp/(S_rated D_q)`, with the frame
-    /// stabilizer `k_a` ([`STABILIZER`](super::hinf_gains::STABILIZER) for a frame with inertia, 0 for one without).
+    /// stabilizer `k_a` ([`STABILIZER`](super::hinf_gains::STABILIZER) for a frame with inertia,
+    /// 0 for one that follows the unit's power at once).
     pub fn new(m: &FilterMeasurement, v_m: Dq, r_v: f64, k_q: f64, k_a: f64) -> HinfLoop {
         HinfLoop {
             x0: *m,

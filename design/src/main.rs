@@ -107,8 +107,8 @@ fn run() -> Result<(), String> {
         "sampled closed loop stable for the gain scaled by {:.3} to {:.3} (gain margins {:.1} dB, {:.1} dB)",
         r.gain_margins.0,
         r.gain_margins.1,
-        20.0 * r.gain_margins.0.log10(),
-        20.0 * r.gain_margins.1.log10()
+        20.0 * dvpp_math::log10(r.gain_margins.0),
+        20.0 * dvpp_math::log10(r.gain_margins.1)
     );
     let (lo, hi) = r
         .sweep

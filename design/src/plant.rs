@@ -266,10 +266,10 @@ impl OperatingPoint {
         let i_f = i_g + v_c.rot90() * d.c_f;
         let v_m = v_c + c_mul(i_f, d.r_f, d.l_f);
         let w = v_c + i_g * spec.r_v;
-        let angle = w.q.atan2(w.d);
+        let angle = dvpp_math::atan2(w.q, w.d);
         let turn = |x: Dq| Dq {
-            d: x.d * angle.cos() + x.q * angle.sin(),
-            q: -x.d * angle.sin() + x.q * angle.cos(),
+            d: x.d * dvpp_math::cos(angle) + x.q * dvpp_math::sin(angle),
+            q: -x.d * dvpp_math::sin(angle) + x.q * dvpp_math::cos(angle),
         };
         OperatingPoint {
             i_f: turn(i_f),
@@ -780,7 +780,10 @@ mod tests {
                 - a.map(|v| one * v);
             let x = mat.lu().solve(&b.map(|v| one * v)).unwrap();
             let got = (0..n).map(|k| x[k] * c[k]).sum::<nalgebra::Complex<f64>>() + dd;
-            assert!((got - want).norm() < 1e-9 * want.norm(), "{got} {want}");
+            assert!(
+                dvpp_math::cabs(got - want) < 1e-9 * dvpp_math::cabs(want),
+                "{got} {want}"
+            );
         }
     }
 

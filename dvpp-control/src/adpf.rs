@@ -317,10 +317,10 @@ impl Adpf {
 /// Logarithmic frequency grid from `lo` to `hi` rad/s with `per_decade` points per decade
 /// (both ends included).
 pub fn log_grid(lo: f64, hi: f64, per_decade: usize) -> Vec<f64> {
-    let (a, b) = (lo.log10(), hi.log10());
+    let (a, b) = (dvpp_math::log10(lo), dvpp_math::log10(hi));
     let n = (((b - a) * per_decade as f64).ceil() as usize).max(1);
     (0..=n)
-        .map(|k| 10f64.powf(a + (b - a) * k as f64 / n as f64))
+        .map(|k| dvpp_math::pow(10f64, a + (b - a) * k as f64 / n as f64))
         .collect()
 }
 
@@ -339,7 +339,7 @@ pub fn participation_error(set: &[Adpf], grid: &[f64]) -> (f64, f64) {
     let mut worst = (0.0, grid.first().copied().unwrap_or(0.0));
     for &w in grid {
         let sum: Complex<f64> = eval_set(set, w).into_iter().sum();
-        let e = (sum - Complex::new(1.0, 0.0)).norm();
+        let e = dvpp_math::cabs(sum - Complex::new(1.0, 0.0));
         if e > worst.0 || e.is_nan() {
             worst = (e, w);
         }

@@ -3,24 +3,24 @@
 /// Power `p + j q` a source `E∠θ` injects through `R + jX` into a bus at `V∠φ` (all per unit).
 pub fn injection(e: f64, theta: f64, v: f64, phi: f64, r: f64, x: f64) -> (f64, f64) {
     let (dr, di) = (
-        e * theta.cos() - v * phi.cos(),
-        e * theta.sin() - v * phi.sin(),
+        e * dvpp_math::cos(theta) - v * dvpp_math::cos(phi),
+        e * dvpp_math::sin(theta) - v * dvpp_math::sin(phi),
     );
     let z2 = r * r + x * x;
     let (ir, ii) = ((dr * r + di * x) / z2, (di * r - dr * x) / z2);
-    let (vr, vi) = (v * phi.cos(), v * phi.sin());
+    let (vr, vi) = (v * dvpp_math::cos(phi), v * dvpp_math::sin(phi));
     (vr * ir + vi * ii, vi * ir - vr * ii)
 }
 
 /// The internal voltage `(E, θ)` behind `R + jX` that injects `p + j q` into a bus at `V∠φ`.
 pub fn internal_voltage(p: f64, q: f64, v: f64, phi: f64, r: f64, x: f64) -> (f64, f64) {
     let (ir, ii) = (
-        (p * phi.cos() + q * phi.sin()) / v,
-        (p * phi.sin() - q * phi.cos()) / v,
+        (p * dvpp_math::cos(phi) + q * dvpp_math::sin(phi)) / v,
+        (p * dvpp_math::sin(phi) - q * dvpp_math::cos(phi)) / v,
     );
-    let er = v * phi.cos() + r * ir - x * ii;
-    let ei = v * phi.sin() + r * ii + x * ir;
-    (er.hypot(ei), ei.atan2(er))
+    let er = v * dvpp_math::cos(phi) + r * ir - x * ii;
+    let ei = v * dvpp_math::sin(phi) + r * ii + x * ir;
+    (dvpp_math::hypot(er, ei), dvpp_math::atan2(ei, er))
 }
 
 #[cfg(test)]

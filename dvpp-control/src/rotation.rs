@@ -39,7 +39,7 @@ impl Rotation {
         if rx == 0.0 {
             return Ok(Rotation::IDENTITY);
         }
-        let z = rx.hypot(1.0);
+        let z = dvpp_math::hypot(rx, 1.0);
         Ok(Rotation {
             cos: 1.0 / z,
             sin: rx / z,
@@ -127,7 +127,7 @@ mod tests {
                 let (pr, qr) = rot.rotate(p, q);
                 let (p2, q2) = rot.unrotate(pr, qr);
                 assert!((p2 - p).abs() < 1e-15 && (q2 - q).abs() < 1e-15);
-                assert!((pr.hypot(qr) - p.hypot(q)).abs() < 1e-15);
+                assert!((dvpp_math::hypot(pr, qr) - dvpp_math::hypot(p, q)).abs() < 1e-15);
             }
         }
     }
@@ -136,7 +136,7 @@ mod tests {
     fn the_rotation_matches_the_impedance_form() {
         // p' = (X p - R q)/|Z|, q' = (R p + X q)/|Z| for a line R + jX.
         let (r, x) = (0.35_f64, 0.28);
-        let z = r.hypot(x);
+        let z = dvpp_math::hypot(r, x);
         let rot = Rotation::from_impedance(r, x).unwrap();
         for (p, q) in POINTS {
             let (pr, qr) = rot.rotate(p, q);

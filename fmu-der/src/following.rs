@@ -54,7 +54,7 @@ impl Der {
         // behind a dominant lag, the plant's voltage control (`vq.tau`).
         let tau_v = s[self.vq_tau];
         let kv = if tau_v > 0.0 {
-            -(-h / tau_v).exp_m1()
+            -dvpp_math::expm1(-h / tau_v)
         } else {
             1.0
         };
@@ -75,7 +75,11 @@ impl Der {
         // bus voltage and the v-q droop, that a one-step exchange delay makes oscillate
         // from one step to the next.
         let tau = s[self.current_tau];
-        let k = if tau > 0.0 { -(-h / tau).exp_m1() } else { 1.0 };
+        let k = if tau > 0.0 {
+            -dvpp_math::expm1(-h / tau)
+        } else {
+            1.0
+        };
         g.current.0 += k * (ip - g.current.0);
         g.current.1 += k * (iq - g.current.1);
         // The limits hold for the current itself, also while it follows its command.
@@ -102,7 +106,7 @@ impl Der {
         Ok(Outcome {
             current_limit: cur,
             dc_limit: dcl,
-            request: wanted.0.hypot(wanted.1) / i_max,
+            request: dvpp_math::hypot(wanted.0, wanted.1) / i_max,
             modulation: false,
         })
     }

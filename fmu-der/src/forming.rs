@@ -86,19 +86,19 @@ impl Der {
             // The limited power at the measured bus voltage, from the node E∠θ.
             let (r, x) = self.slot_impedance(s);
             let z = Complex::new(r, x);
-            let bus = Complex::from_polar(s[self.v], s[self.v_angle]);
+            let bus = dvpp_math::cpolar(s[self.v], s[self.v_angle]);
             let u = if s[self.v] > limits::V_FLOOR {
                 bus / s[self.v]
             } else {
-                Complex::from_polar(1.0, f.theta)
+                dvpp_math::cpolar(1.0, f.theta)
             };
             let budget = rt.dc.ac_budget();
             let r_v = self.virtual_resistance(s);
             let limited = |theta: f64| {
                 let source = if r_v == 0.0 {
-                    Complex::from_polar(s[self.e], theta)
+                    dvpp_math::cpolar(s[self.e], theta)
                 } else {
-                    behind_virtual(Complex::from_polar(f.e, theta), bus, z, r_v)
+                    behind_virtual(dvpp_math::cpolar(f.e, theta), bus, z, r_v)
                 };
                 let wanted = (source - bus) / z;
                 let i = limits::saturate_forming(
@@ -125,7 +125,7 @@ impl Der {
         s[self.df] = df;
         f.dtheta = dtheta;
         f.theta += f.dtheta;
-        f.dtheta_mean += -(-h / ANGLE_MEAN_TAU).exp_m1() * (f.dtheta - f.dtheta_mean);
+        f.dtheta_mean += -dvpp_math::expm1(-h / ANGLE_MEAN_TAU) * (f.dtheta - f.dtheta_mean);
         // PI matching controller on E: q tracks the reference held over the step.
         // E within [0, E_max]; the integrator stops while the limit holds (anti-windup).
         f.e = layer::voltage_matching(
@@ -151,27 +151,27 @@ impl Der {
         let e_cap = s[self.e_max] * rt.dc.v_dc();
         let (r, x) = self.slot_impedance(s);
         let z = Complex::new(r, x);
-        let bus = Complex::from_polar(v, v_angle);
-        let internal = Complex::from_polar(f.e, f.theta);
+        let bus = dvpp_math::cpolar(v, v_angle);
+        let internal = dvpp_math::cpolar(f.e, f.theta);
         let r_v = self.virtual_resistance(s);
         let source = if r_v == 0.0 {
             internal
         } else {
             behind_virtual(internal, bus, z, r_v)
         };
-        let modulation = source.norm() > e_cap;
-        let e_out = source.norm().min(e_cap);
+        let modulation = dvpp_math::cabs(source) > e_cap;
+        let e_out = dvpp_math::cabs(source).min(e_cap);
         // Its angle, continuous with the internal one.
         let theta_out = if r_v == 0.0 {
             f.theta
         } else {
-            f.theta + (source * Complex::from_polar(1.0, -f.theta)).arg()
+            f.theta + dvpp_math::carg(source * dvpp_math::cpolar(1.0, -f.theta))
         };
-        let wanted = (Complex::from_polar(e_out, theta_out) - bus) / z;
+        let wanted = (dvpp_math::cpolar(e_out, theta_out) - bus) / z;
         let u = if v > limits::V_FLOOR {
             bus / v
         } else {
-            Complex::from_polar(1.0, f.theta)
+            dvpp_math::cpolar(1.0, f.theta)
         };
         let lim = limits::saturate_forming(wanted * to_rated, u, v, i_max, budget);
         // Its gain: the feedback closes a loop through the direct feedthrough `D` of
@@ -180,8 +180,8 @@ impl Der {
         rt.withheld = if lim.current_limit || lim.dc_limit {
             let held = bus * (wanted - lim.current / to_rated).conj();
             let feedthrough = f.pf.simulator().system().d()[0].abs();
-            let loop_gain =
-                2.0 * PI * s[self.f_nom] * h * feedthrough * to_dvpp * e_out * v / z.norm();
+            let loop_gain = 2.0 * PI * s[self.f_nom] * h * feedthrough * to_dvpp * e_out * v
+                / dvpp_math::cabs(z);
             let kappa = (0.5 / loop_gain).min(1.0);
             (kappa * held.re, kappa * held.im)
         } else {
@@ -189,7 +189,7 @@ impl Der {
         };
         s[self.e] = e_out;
         s[self.theta] = theta_out;
-        let request = (wanted * to_rated).norm() / i_max;
+        let request = dvpp_math::cabs(wanted * to_rated) / i_max;
         Ok(Outcome {
             current_limit: lim.current_limit,
             dc_limit: lim.dc_limit,

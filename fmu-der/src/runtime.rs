@@ -280,7 +280,7 @@ impl Der {
         s[self.i_ac] = if v < limits::V_FLOOR {
             0.0
         } else {
-            p.hypot(q) / v * s_base / s_rated
+            dvpp_math::hypot(p, q) / v * s_base / s_rated
         };
         // The dc budget at the terminal: less the R_f loss at the present current.
         let (r, _) = self.slot_impedance(s);

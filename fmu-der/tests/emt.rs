@@ -88,8 +88,8 @@ impl Plant {
             &self.x,
             v_m,
             Dq {
-                d: self.v_g * self.jump.cos(),
-                q: self.v_g * self.jump.sin(),
+                d: self.v_g * dvpp_math::cos(self.jump),
+                q: self.v_g * dvpp_math::sin(self.jump),
             },
         );
         self.t += H;
@@ -365,7 +365,7 @@ fn dip_figures(r: &Dip, dq_inf: f64) -> DipFigures {
     let rms = |f: &dyn Fn(usize) -> f64| {
         ((step..n).map(|k| f(k).powi(2)).sum::<f64>() / (n - step) as f64).sqrt()
     };
-    let model = |k: usize| q0 + dq_inf * (1.0 - (-((k - step) as f64 * H) / tau).exp());
+    let model = |k: usize| q0 + dq_inf * (1.0 - dvpp_math::exp(-((k - step) as f64 * H) / tau));
     let peak = |r0: std::ops::Range<usize>| r0.map(|k| (r.p[k] - 0.3).abs()).fold(0.0, f64::max);
     DipFigures {
         rms_own: rms(&|k| r.q[k] - r.q_ref[k]),

@@ -32,7 +32,7 @@ impl Bus {
         ]);
         if h.get_int("mode") == 1 {
             let z_f = Complex::new(r_f, x_f) * (s_base / s_rated);
-            let e = Complex::from_polar(e, theta);
+            let e = dvpp_math::cpolar(e, theta);
             let v = (z_f * self.v_th + self.z_th * e) / (z_f + self.z_th);
             (v, v * ((e - v) / z_f).conj())
         } else {
@@ -49,11 +49,11 @@ impl Bus {
         let (v, s) = self.solve(h);
         // The angle continuous across ±π (the source's frequency offset turns it round).
         let last = h.get("v_angle");
-        let turns = ((last - v.arg()) / (2.0 * PI)).round();
+        let turns = ((last - dvpp_math::carg(v)) / (2.0 * PI)).round();
         h.set("p", s.re);
         h.set("q", s.im);
-        h.set("v", v.norm());
-        h.set("v_angle", v.arg() + 2.0 * PI * turns);
+        h.set("v", dvpp_math::cabs(v));
+        h.set("v_angle", dvpp_math::carg(v) + 2.0 * PI * turns);
         let t = h.time();
         h.do_step(t, DT)
     }
@@ -83,7 +83,7 @@ fn frequency_step(h: &mut Harness<Der>, z_th: Complex<f64>, df: f64, steps: usiz
     let mut out = Vec::new();
     for k in 0..steps {
         let t = k as f64 * DT;
-        bus.v_th = v_th0 * Complex::from_polar(1.0, 2.0 * PI * 50.0 * df * (t - 0.2).max(0.0));
+        bus.v_th = v_th0 * dvpp_math::cpolar(1.0, 2.0 * PI * 50.0 * df * (t - 0.2).max(0.0));
         assert_eq!(bus.step(h), Status::Ok, "{:#?}", h.log());
         if k + 1 == 600 || k + 1 == steps {
             out.extend(RECORDED.iter().map(|n| h.get(n)));
@@ -178,7 +178,7 @@ struct Steady {
 
 /// `(p', q')` for the ratio `rx`, written out here independently of the unit.
 fn rotated(rx: f64, p: f64, q: f64) -> (f64, f64) {
-    let c = 1.0 / rx.hypot(1.0);
+    let c = 1.0 / dvpp_math::hypot(rx, 1.0);
     (c * (p - rx * q), c * (rx * p + q))
 }
 

@@ -802,7 +802,7 @@ impl Plant {
         for (r, x) in self.pcc_v.iter().zip(inverse_clarke(vp)) {
             s[*r] = x;
         }
-        s[self.pcc_mag] = vp[0].hypot(vp[1]);
+        s[self.pcc_mag] = dvpp_math::hypot(vp[0], vp[1]);
         s[self.pcc_df] = run.pll.dw / fixed.omega_b;
         s[self.pcc_theta] = wrap(run.pll.theta);
         let e = &run.energy;
@@ -970,7 +970,7 @@ impl Model for Plant {
             .collect();
         let (e_mag, angle) = fixed.source(0.0);
         let slack = if topo.thevenin {
-            Slack::Thevenin(C::from_polar(e_mag, angle))
+            Slack::Thevenin(dvpp_math::cpolar(e_mag, angle))
         } else {
             let v0 = self.units[0].v0.expect("unit 1 declares v0");
             Slack::Unit(C::new(s[v0], 0.0))
@@ -994,7 +994,7 @@ impl Model for Plant {
             put(net.i_th(), st.i_th);
         }
         let e = if topo.thevenin {
-            let c = C::from_polar(e_mag, angle);
+            let c = dvpp_math::cpolar(e_mag, angle);
             [c.re, c.im]
         } else {
             [0.0; 2]
@@ -1015,7 +1015,7 @@ impl Model for Plant {
             x,
             e,
             dc,
-            pll: Pll::locked(st.v_pcc.arg()),
+            pll: Pll::locked(dvpp_math::carg(st.v_pcc)),
             energy: Energies::default(),
             t0: None,
             topo,
@@ -1050,7 +1050,7 @@ impl Model for Plant {
         // The source at the step's start, from the absolute time (an event acts here).
         if topo.thevenin {
             let (e, angle) = fixed.source(t);
-            let c = C::from_polar(e, fixed.omega_b * (t - t0) + angle + run.delta);
+            let c = dvpp_math::cpolar(e, fixed.omega_b * (t - t0) + angle + run.delta);
             run.e = [c.re, c.im];
         }
         let mut z = Self::augmented(fixed, run);
@@ -1105,7 +1105,7 @@ impl Model for Plant {
             let p_e = e_th / (h * net.s_base);
             let dw0 = run.dw;
             run.dw = if d_th > 0.0 {
-                let k = (-h * d_th / (2.0 * h_th)).exp();
+                let k = dvpp_math::exp(-h * d_th / (2.0 * h_th));
                 dw0 * k + (run.p_m - p_e) / d_th * (1.0 - k)
             } else {
                 dw0 + h * (run.p_m - p_e) / (2.0 * h_th)
@@ -1122,7 +1122,7 @@ impl Model for Plant {
         run.pll.step(vp, h, fixed.omega_b, kp, ki);
         let df = run.pll.dw / fixed.omega_b;
         run.df_lag += if fixed.f_filter_t > 0.0 {
-            -(-h / fixed.f_filter_t).exp_m1() * (df - run.df_lag)
+            -dvpp_math::expm1(-h / fixed.f_filter_t) * (df - run.df_lag)
         } else {
             df - run.df_lag
         };

@@ -53,13 +53,13 @@ impl Pll {
     }
 
     fn error(&self, v: [f64; 2]) -> f64 {
-        let (s, c) = self.theta.sin_cos();
+        let (s, c) = dvpp_math::sincos(self.theta);
         let vd = v[0] * c + v[1] * s;
         let vq = -v[0] * s + v[1] * c;
-        if vd.hypot(vq) < 1e-9 {
+        if dvpp_math::hypot(vd, vq) < 1e-9 {
             0.0
         } else {
-            vq.atan2(vd)
+            dvpp_math::atan2(vq, vd)
         }
     }
 

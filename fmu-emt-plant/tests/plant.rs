@@ -53,12 +53,12 @@ fn space_vector(h: &mut Harness<Plant>, name: &str) -> C {
 
 /// The phasor (peak, at the run's start) of a space vector measured at time `t` since the start.
 fn phasor(sv: C, t: f64) -> C {
-    sv * C::from_polar(1.0, -WB * t)
+    sv * dvpp_math::cpolar(1.0, -WB * t)
 }
 
 /// abc values of a balanced phasor at time `t`.
 fn abc(x: C, t: f64) -> [f64; 3] {
-    [0.0, 1.0, 2.0].map(|k| (x * C::from_polar(1.0, WB * t - k * 2.0 * PI / 3.0)).re)
+    [0.0, 1.0, 2.0].map(|k| (x * dvpp_math::cpolar(1.0, WB * t - k * 2.0 * PI / 3.0)).re)
 }
 
 /// Steady-state modulation phasor and dc command of every unit, from the measurements at the

@@ -10,8 +10,8 @@ fn main() {
             println!(
                 "  bus {} {:.4} {:.3}",
                 i + 1,
-                v.norm(),
-                v.arg().to_degrees()
+                dvpp_math::cabs(*v),
+                dvpp_math::carg(*v).to_degrees()
             );
         }
         println!("  mach {:?}\n  der {:?}", pf.machine_pq, pf.der_pq);

@@ -70,9 +70,9 @@ impl DerRt {
     /// `conj(S/V)` (grid-following), within the slot's limits.
     pub(crate) fn current(&self, v: C64) -> C64 {
         let free = match self.input {
-            DerInput::GridForming { theta, e } => self.y * (C64::from_polar(e, theta) - v),
+            DerInput::GridForming { theta, e } => self.y * (dvpp_math::cpolar(e, theta) - v),
             DerInput::GridFollowing { p_ref, q_ref } => {
-                if v.norm() > 0.0 {
+                if dvpp_math::cabs(v) > 0.0 {
                     (C64::new(p_ref, q_ref) / v).conj()
                 } else {
                     C64::new(0.0, 0.0)
@@ -83,7 +83,7 @@ impl DerRt {
             return free;
         }
         let mut i = free;
-        let vm = v.norm();
+        let vm = dvpp_math::cabs(v);
         if vm > LIMIT_V_MIN {
             // Active part along the voltage: p = |V| i_p.
             let u = v / vm;
@@ -92,8 +92,8 @@ impl DerRt {
             i = C64::new(ip, local.im) * u;
         }
         let i_max = self.limit.i_max * self.rating;
-        if i.norm() > i_max {
-            i *= i_max / i.norm();
+        if dvpp_math::cabs(i) > i_max {
+            i *= i_max / dvpp_math::cabs(i);
         }
         i
     }

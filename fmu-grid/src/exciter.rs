@@ -363,7 +363,7 @@ impl Exciter {
                 vr_max,
                 ..
             } => {
-                let se = se_a * (se_b * efd).exp();
+                let se = se_a * dvpp_math::exp(se_b * efd);
                 let vr = (ke + se) * efd;
                 if vr > *vr_max || vr < *vr_min {
                     return Err(format!("initial regulator output {vr:.4} outside limits"));
@@ -452,7 +452,7 @@ impl Exciter {
                 vr_max,
             } => {
                 let (efd, vr, rf) = (x[ieee_t1::EFD], x[ieee_t1::VR], x[ieee_t1::RF]);
-                let se = se_a * (se_b * efd).exp();
+                let se = se_a * dvpp_math::exp(se_b * efd);
                 dx[ieee_t1::EFD] = (-(ke + se) * efd + vr) / te;
                 let dvr = (-vr + ka * rf - ka * kf / tf * efd + ka * (vref - vt + vs)) / ta;
                 dx[ieee_t1::VR] = limited(dvr, vr, *vr_min, *vr_max);

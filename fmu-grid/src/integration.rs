@@ -164,12 +164,15 @@ mod tests {
             }
             assert_eq!(solves, 4 * n);
             assert_eq!(y, x[0] + x[1]);
-            ((x[0] - 1f64.cos()).hypot(x[1] + 1f64.sin()), x)
+            (
+                dvpp_math::hypot(x[0] - dvpp_math::cos(1f64), x[1] + dvpp_math::sin(1f64)),
+                x,
+            )
         };
         let (e10, _) = run(10);
         let (e20, x) = run(20);
         assert!(e20 < 1e-6, "{x:?}");
-        let order = (e10 / e20).log2();
+        let order = dvpp_math::log2(e10 / e20);
         assert!((order - 4.0).abs() < 0.2, "order {order}");
     }
 

@@ -309,7 +309,7 @@ pub(crate) struct MachAlg {
 /// Rotation from the network frame to the dq frame of a rotor at angle `delta`.
 pub(crate) fn rot(delta: f64) -> C64 {
     // network -> dq: multiply by e^{-j(δ - π/2)}
-    C64::from_polar(1.0, -(delta - PI / 2.0))
+    dvpp_math::cpolar(1.0, -(delta - PI / 2.0))
 }
 
 impl MachineRt {
@@ -390,7 +390,7 @@ impl MachineRt {
             MachineModel::Classical => mr.xd_p,
         };
         let e_axis = vt + C64::new(mr.ra, x_axis) * it;
-        let delta = e_axis.arg();
+        let delta = dvpp_math::carg(e_axis);
         let (vdq, idq) = (vt * rot(delta), it * rot(delta));
         let (vd, vq, id, iq) = (vdq.re, vdq.im, idq.re, idq.im);
         let (edp, eqp, efd) = match m.model {
@@ -402,7 +402,7 @@ impl MachineRt {
                     eqp + (mr.xd - mr.xd_p) * id,
                 )
             }
-            MachineModel::Classical => (0.0, e_axis.norm(), e_axis.norm()),
+            MachineModel::Classical => (0.0, dvpp_math::cabs(e_axis), dvpp_math::cabs(e_axis)),
         };
         let pe = vd * id + vq * iq + mr.ra * (id * id + iq * iq);
         let xm = &mut x[at.machine..at.governor];
@@ -426,7 +426,7 @@ impl MachineRt {
         }
         if let Some(e) = &mr.exciter {
             mr.vref = e
-                .init(efd, vt.norm(), &mut x[at.exciter..at.pss])
+                .init(efd, dvpp_math::cabs(vt), &mut x[at.exciter..at.pss])
                 .map_err(|e| GridError::Init(format!("{name}: {e}")))?;
         }
         // A stabilizer starts at rest (Δω = 0): its states are zero.

@@ -92,7 +92,7 @@ pub fn solve(case: &Case, tol: f64, max_iter: usize) -> Result<PowerFlow, (usize
     let na = ang_idx.len();
     let nu = na + mag_idx.len();
     let calc = |vm: &[f64], va: &[f64]| -> (Vec<f64>, Vec<f64>) {
-        let v: Vec<C64> = (0..n).map(|i| C64::from_polar(vm[i], va[i])).collect();
+        let v: Vec<C64> = (0..n).map(|i| dvpp_math::cpolar(vm[i], va[i])).collect();
         let mut p = vec![0.0; n];
         let mut q = vec![0.0; n];
         for i in 0..n {
@@ -126,7 +126,7 @@ pub fn solve(case: &Case, tol: f64, max_iter: usize) -> Result<PowerFlow, (usize
         }
         iterations += 1;
         // Jacobian d(P,Q)/d(θ, |V|) by analytic formulas
-        let v: Vec<C64> = (0..n).map(|i| C64::from_polar(vm[i], va[i])).collect();
+        let v: Vec<C64> = (0..n).map(|i| dvpp_math::cpolar(vm[i], va[i])).collect();
         let ibus: Vec<C64> = (0..n)
             .map(|i| (0..n).fold(C64::new(0.0, 0.0), |a, k| a + y[(i, k)] * v[k]))
             .collect();
@@ -171,7 +171,7 @@ pub fn solve(case: &Case, tol: f64, max_iter: usize) -> Result<PowerFlow, (usize
             vm[i] += dx[na + r];
         }
     }
-    let v: Vec<C64> = (0..n).map(|i| C64::from_polar(vm[i], va[i])).collect();
+    let v: Vec<C64> = (0..n).map(|i| dvpp_math::cpolar(vm[i], va[i])).collect();
     let (p, q) = calc(&vm, &va);
     // net source injection at each bus = computed injection + load
     let mut p_src = p.clone();

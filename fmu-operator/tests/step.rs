@@ -212,7 +212,7 @@ fn ref_df_follows_t_pf_applied_to_the_pcc_power_change() {
         h.step(DT);
         let t = h.time() - t0;
         let [ref_df, ref_dv, err_df] = h.get_many(["ref.df", "ref.dv", "err.df"]);
-        let expected = -dp / d * (1.0 - (-d * t / hh).exp());
+        let expected = -dp / d * (1.0 - dvpp_math::exp(-d * t / hh));
         close(ref_df, expected, 1e-12, format_args!("ref.df at t = {t}"));
         close(ref_dv, dq * 0.05 * 100.0 / 80.0, 1e-15, "ref.dv");
         close(err_df, -0.0005 - ref_df, 1e-15, "err.df");
@@ -409,7 +409,7 @@ fn with_pocs_ref_df_follows_t_pf_applied_to_the_summed_rotated_poc_power_change(
         h.set("poc[2].f", 0.9997);
         // p' = (p - rx q)/sqrt(1 + rx²), summed over the POCs, on S_dvpp = 96 MVA.
         let rotated: f64 = (0..2)
-            .map(|k| (dp[k] - rx * dq[k]) / rx.hypot(1.0))
+            .map(|k| (dp[k] - rx * dq[k]) / dvpp_math::hypot(rx, 1.0))
             .sum::<f64>()
             * 100.0
             / 96.0;
@@ -419,7 +419,7 @@ fn with_pocs_ref_df_follows_t_pf_applied_to_the_summed_rotated_poc_power_change(
             let [ref_df, poc_dp, e1, e2] =
                 h.get_many(["ref.df", "poc.dp", "poc[1].err_df", "poc[2].err_df"]);
             close(poc_dp, rotated, 1e-14, format_args!("poc.dp, rx = {rx}"));
-            let expected = -rotated / d * (1.0 - (-d * t / hh).exp());
+            let expected = -rotated / d * (1.0 - dvpp_math::exp(-d * t / hh));
             close(
                 ref_df,
                 expected,

@@ -182,7 +182,7 @@ impl Signals {
             [a, b, ..] => b - a,
             _ => return Vec::new(),
         };
-        let a = (-h / t_f).exp();
+        let a = dvpp_math::exp(-h / t_f);
         let compare = |df: &[f64]| {
             let gap = df
                 .iter()
@@ -318,9 +318,9 @@ pub fn adpf_magnitudes(lpf: &[LowPass], mu: &[f64], w: &[f64]) -> Vec<Vec<f64>> 
             }
             re_sum += re;
             im_sum += im;
-            out[k].push(re.hypot(im));
+            out[k].push(dvpp_math::hypot(re, im));
         }
-        out[lpf.len()].push((1.0 - re_sum).hypot(-im_sum));
+        out[lpf.len()].push(dvpp_math::hypot(1.0 - re_sum, -im_sum));
     }
     out
 }
@@ -333,7 +333,7 @@ pub fn adpf_figure(
     cases: &[(&str, &[f64])],
 ) -> Figure {
     let w: Vec<f64> = (0..=200)
-        .map(|i| 10f64.powf(-3.0 + 6.0 * i as f64 / 200.0))
+        .map(|i| dvpp_math::pow(10f64, -3.0 + 6.0 * i as f64 / 200.0))
         .collect();
     let mut panel = Panel::new("active ADPFs |m_i(jω)|", "ω (rad/s)", "magnitude")
         .log_x()

@@ -436,7 +436,7 @@ fn variable_communication_steps_are_honoured_exactly() {
         t += h;
         let mut df = [0.0];
         i.get_real(&[vr("df")], &mut df);
-        let analytic = -dp / (mu * d) * (1.0 - (-d * t / h_in).exp());
+        let analytic = -dp / (mu * d) * (1.0 - dvpp_math::exp(-d * t / h_in));
         assert!(
             (df[0] - analytic).abs() < 1e-12,
             "t = {t}: {} vs {analytic}",

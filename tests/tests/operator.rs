@@ -250,7 +250,7 @@ fn desired_response_is_t_pf_applied_to_the_pcc_power_change() {
         else {
             unreachable!()
         };
-        let analytic = -dp / d * (1.0 - (-d * t / hh).exp());
+        let analytic = -dp / d * (1.0 - dvpp_math::exp(-d * t / hh));
         assert!(
             (ref_df - analytic).abs() < 1e-12,
             "t = {t}: {ref_df} vs {analytic}"

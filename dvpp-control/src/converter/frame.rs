@@ -32,9 +32,9 @@ const SHIFT: f64 = 2.0 * PI / 3.0;
 impl Abc {
     /// The dq value of these phases in the frame at angle `theta`.
     pub fn to_dq(self, theta: f64) -> Dq {
-        let (sa, ca) = theta.sin_cos();
-        let (sb, cb) = (theta - SHIFT).sin_cos();
-        let (sc, cc) = (theta + SHIFT).sin_cos();
+        let (sa, ca) = dvpp_math::sincos(theta);
+        let (sb, cb) = dvpp_math::sincos(theta - SHIFT);
+        let (sc, cc) = dvpp_math::sincos(theta + SHIFT);
         Dq {
             d: 2.0 / 3.0 * (self.a * ca + self.b * cb + self.c * cc),
             q: -2.0 / 3.0 * (self.a * sa + self.b * sb + self.c * sc),
@@ -51,7 +51,7 @@ impl Dq {
     /// The phases of this dq value in the frame at angle `theta`.
     pub fn to_abc(self, theta: f64) -> Abc {
         let at = |angle: f64| {
-            let (s, c) = angle.sin_cos();
+            let (s, c) = dvpp_math::sincos(angle);
             self.d * c - self.q * s
         };
         Abc {
@@ -63,7 +63,7 @@ impl Dq {
 
     /// The magnitude `√(d² + q²)` (the peak phase value).
     pub fn norm(self) -> f64 {
-        self.d.hypot(self.q)
+        dvpp_math::hypot(self.d, self.q)
     }
 
     /// `j · self` (a quarter turn ahead).
@@ -123,13 +123,13 @@ mod tests {
     fn a_balanced_set_is_its_peak_phasor() {
         let (x, phi, theta): (f64, f64, f64) = (0.8, 0.3, 1.1);
         let abc = Abc {
-            a: x * (theta + phi).cos(),
-            b: x * (theta + phi - SHIFT).cos(),
-            c: x * (theta + phi + SHIFT).cos(),
+            a: x * dvpp_math::cos(theta + phi),
+            b: x * dvpp_math::cos(theta + phi - SHIFT),
+            c: x * dvpp_math::cos(theta + phi + SHIFT),
         };
         let dq = abc.to_dq(theta);
-        assert!((dq.d - x * phi.cos()).abs() < 1e-12);
-        assert!((dq.q - x * phi.sin()).abs() < 1e-12);
+        assert!((dq.d - x * dvpp_math::cos(phi)).abs() < 1e-12);
+        assert!((dq.q - x * dvpp_math::sin(phi)).abs() < 1e-12);
         let back = dq.to_abc(theta);
         assert!((back.a - abc.a).abs() < 1e-12 && (back.c - abc.c).abs() < 1e-12);
     }

@@ -242,7 +242,7 @@ mod tests {
         let (y0, yf) = (y[0], *y.last().unwrap());
         let k = y
             .iter()
-            .position(|v| (v - y0) / (yf - y0) >= 1.0 - (-1.0f64).exp())
+            .position(|v| (v - y0) / (yf - y0) >= 1.0 - dvpp_math::exp(-1.0f64))
             .unwrap();
         let peak = y.iter().map(|v| (v - y0) / (yf - y0)).fold(0.0, f64::max);
         (k as f64 * H, peak - 1.0)

@@ -55,7 +55,7 @@ impl Pll {
     pub fn step(&mut self, v: Abc, h: f64) {
         let dq = self.frame(v);
         let e = if dq.norm() > 1e-6 {
-            dq.q.atan2(dq.d)
+            dvpp_math::atan2(dq.q, dq.d)
         } else {
             0.0
         };

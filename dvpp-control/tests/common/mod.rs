@@ -25,7 +25,9 @@ impl Rng {
     }
     /// Log-uniform in [lo, hi].
     pub fn log_range(&mut self, lo: f64, hi: f64) -> f64 {
-        (lo.ln() + (hi.ln() - lo.ln()) * self.uniform()).exp()
+        dvpp_math::exp(
+            dvpp_math::log(lo) + (dvpp_math::log(hi) - dvpp_math::log(lo)) * self.uniform(),
+        )
     }
     pub fn int(&mut self, lo: u32, hi_inclusive: u32) -> u32 {
         lo + (self.next_u64() % u64::from(hi_inclusive - lo + 1)) as u32

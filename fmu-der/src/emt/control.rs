@@ -188,11 +188,11 @@ impl DerEmt {
         let rho = match mode {
             Mode::GridForming => {
                 let w = self.behind_virtual(s, &at_zero);
-                w.q.atan2(w.d)
+                dvpp_math::atan2(w.q, w.d)
             }
             Mode::GridFollowing => {
                 let vg = self.grid_voltage(s, &at_zero, 1.0);
-                vg.q.atan2(vg.d)
+                dvpp_math::atan2(vg.q, vg.d)
             }
         };
         let m = self.measure(s, rho);
@@ -440,7 +440,7 @@ impl DerEmt {
                 let dp = fp.step(rt.df, h) / to_dvpp;
                 let tau_v = s[self.vq_tau];
                 let kv = if tau_v > 0.0 {
-                    -(-h / tau_v).exp_m1()
+                    -dvpp_math::expm1(-h / tau_v)
                 } else {
                     1.0
                 };
@@ -448,7 +448,7 @@ impl DerEmt {
                 rt.q_ref = rt.q0 + rt.vq.step(rt.dv_lag, h) / to_dvpp;
                 // The grid-side current for the references at the measured voltage, plus the
                 // capacitor's current: the converter-side current reference.
-                let k = -(-h / REFERENCE_TAU).exp_m1();
+                let k = -dvpp_math::expm1(-h / REFERENCE_TAU);
                 rt.vg_lag = rt.vg_lag + (vg - rt.vg_lag) * k;
                 rt.vc_lag = rt.vc_lag + (m.v_c - rt.vc_lag) * k;
                 let (pr, qr) = ((p_set + dp) / to_base, rt.q_ref / to_base);
@@ -483,7 +483,7 @@ impl DerEmt {
         let (lo, hi) = (range[0] / v_range, range[1] / v_range);
         let i_cmd = command / v_range;
         let i0 = rt.i_src.clamp(lo, hi);
-        rt.i_src = (i_cmd + (i0 - i_cmd) * (-h / s[self.tau_dc]).exp()).clamp(lo, hi);
+        rt.i_src = (i_cmd + (i0 - i_cmd) * dvpp_math::exp(-h / s[self.tau_dc])).clamp(lo, hi);
         let source = (rt.i_src >= hi && i_cmd > hi) || (rt.i_src <= lo && i_cmd < lo);
 
         rt.v_m = v_m;

@@ -264,8 +264,8 @@ pub const RX_MAX: f64 = 20.0;
 
 /// Series r, x with |r + jx| kept and r/x = `rx`.
 pub fn with_rx(r: f64, x: f64, rx: f64) -> (f64, f64) {
-    let z = r.hypot(x);
-    let x_new = z / rx.hypot(1.0);
+    let z = dvpp_math::hypot(r, x);
+    let x_new = z / dvpp_math::hypot(rx, 1.0);
     (rx * x_new, x_new)
 }
 

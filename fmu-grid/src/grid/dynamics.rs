@@ -84,13 +84,13 @@ impl Grid {
 
     fn update_angles(&mut self) {
         for (k, d) in self.ders.iter().enumerate() {
-            let a = self.sol.v[d.bus].arg();
+            let a = dvpp_math::carg(self.sol.v[d.bus]);
             self.der_angle[k] += wrap(a - self.der_angle[k]);
         }
-        let a = self.sol.v[self.pcc_bus].arg();
+        let a = dvpp_math::carg(self.sol.v[self.pcc_bus]);
         self.pcc_angle += wrap(a - self.pcc_angle);
         for (k, p) in self.pocs.iter().enumerate() {
-            let a = self.sol.v[p.bus].arg();
+            let a = dvpp_math::carg(self.sol.v[p.bus]);
             self.poc_angle[k] += wrap(a - self.poc_angle[k]);
         }
     }
@@ -101,15 +101,15 @@ impl Grid {
         dx.clear();
         dx.resize(x.len(), 0.0);
         for (m, a) in self.machines.iter().zip(alg) {
-            m.deriv(x, a, v[m.bus].norm(), self.wb, self.sb, dx);
+            m.deriv(x, a, dvpp_math::cabs(v[m.bus]), self.wb, self.sb, dx);
         }
         // The PCC frequency filter works on the unwrapped angle: its lag behind the angle is
         // Δω T_f, beyond π at deviations above π/(ω_b T_f) (0.1 pu for T_f = 0.1 s).
         let i = self.pcc_state;
-        let th = self.pcc_angle + wrap(v[self.pcc_bus].arg() - self.pcc_angle);
+        let th = self.pcc_angle + wrap(dvpp_math::carg(v[self.pcc_bus]) - self.pcc_angle);
         dx[i] = (th - x[i]) / self.pcc_tf;
         for (k, p) in self.pocs.iter().enumerate() {
-            let th = self.poc_angle[k] + wrap(v[p.bus].arg() - self.poc_angle[k]);
+            let th = self.poc_angle[k] + wrap(dvpp_math::carg(v[p.bus]) - self.poc_angle[k]);
             dx[i + 1 + k] = (th - x[i + 1 + k]) / p.tf;
         }
     }

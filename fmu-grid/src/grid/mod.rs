@@ -196,7 +196,7 @@ impl Grid {
             .iter()
             .map(|p| {
                 let bus = idx[&p.bus];
-                x.push(v[bus].arg());
+                x.push(dvpp_math::carg(v[bus]));
                 PocRt {
                     bus,
                     branches: p
@@ -214,7 +214,7 @@ impl Grid {
         // The DVPPs' PCCs follow the POCs (filter states, angles), outside the area.
         for p in &case.dvpp_pccs {
             let bus = idx[&p.bus];
-            x.push(v[bus].arg());
+            x.push(dvpp_math::carg(v[bus]));
             pocs.push(PocRt {
                 bus,
                 branches: Vec::new(),
@@ -223,14 +223,14 @@ impl Grid {
                 tf: p.f_filter_t,
             });
         }
-        let poc_angle = pocs.iter().map(|p| v[p.bus].arg()).collect();
+        let poc_angle = pocs.iter().map(|p| dvpp_math::carg(v[p.bus])).collect();
         // DER slots
         let mut ders = Vec::new();
         for (k, d) in case.ders.iter().enumerate() {
             let bus = idx[&d.bus];
             let (p, q) = pf.der_pq[k];
             let zs = C64::new(d.r, d.x.unwrap_or(0.0)) * (sb / d.rating_mva);
-            let y = if zs.norm() > 0.0 {
+            let y = if dvpp_math::cabs(zs) > 0.0 {
                 C64::new(1.0, 0.0) / zs
             } else {
                 C64::new(0.0, 0.0)
@@ -241,12 +241,12 @@ impl Grid {
                     let e = v[bus] + zs * i;
                     (
                         DerInput::GridForming {
-                            theta: e.arg(),
-                            e: e.norm(),
+                            theta: dvpp_math::carg(e),
+                            e: dvpp_math::cabs(e),
                         },
                         DerSetpoint::GridForming {
-                            theta0: e.arg(),
-                            e0: e.norm(),
+                            theta0: dvpp_math::carg(e),
+                            e0: dvpp_math::cabs(e),
                         },
                     )
                 }
@@ -286,9 +286,9 @@ impl Grid {
                 ((b), (0..case.ders.len()).collect(), Vec::new(), 0.02)
             }
         };
-        x[pcc_state] = v[pcc_bus].arg();
-        let der_angle = ders.iter().map(|d| v[d.bus].arg()).collect();
-        let pcc_angle = v[pcc_bus].arg();
+        x[pcc_state] = dvpp_math::carg(v[pcc_bus]);
+        let der_angle = ders.iter().map(|d| dvpp_math::carg(v[d.bus])).collect();
+        let pcc_angle = dvpp_math::carg(v[pcc_bus]);
         let events = case
             .events
             .iter()
@@ -358,7 +358,7 @@ impl Grid {
             .v
             .iter()
             .zip(&g.pf.v)
-            .map(|(a, b)| (a - b).norm())
+            .map(|(a, b)| dvpp_math::cabs(a - b))
             .fold(0.0, f64::max);
         if dev > 1e-8 {
             return Err(GridError::Init(format!(

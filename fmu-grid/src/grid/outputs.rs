@@ -121,7 +121,7 @@ impl Grid {
             out.der.push(DerOutput {
                 p: s.re,
                 q: s.im,
-                v: self.sol.v[d.bus].norm(),
+                v: dvpp_math::cabs(self.sol.v[d.bus]),
                 v_angle: self.der_angle[k],
             });
         }
@@ -132,7 +132,7 @@ impl Grid {
             let mut o = MachineOutput {
                 omega: xm[state::OMEGA],
                 delta: xm[state::DELTA],
-                vt: vt.norm(),
+                vt: dvpp_math::cabs(vt),
                 pm: m.pm_sys(&self.x, self.sb),
                 in_service: m.in_service,
                 ..Default::default()
@@ -145,7 +145,7 @@ impl Grid {
                 o.p = s.re;
                 o.q = s.im;
                 o.pe = m.pe(&a);
-                o.efd = m.efd(&self.x, vt.norm());
+                o.efd = m.efd(&self.x, dvpp_math::cabs(vt));
                 gen += s.re;
                 hw += m.h * xm[state::OMEGA];
                 hs += m.h;
@@ -189,7 +189,7 @@ impl Grid {
         out.pcc = PccOutput {
             p: sp.re,
             q: sp.im,
-            v: self.sol.v[self.pcc_bus].norm(),
+            v: dvpp_math::cabs(self.sol.v[self.pcc_bus]),
             f,
             angle: self.pcc_angle,
         };
@@ -217,7 +217,7 @@ impl Grid {
             let measured = PccOutput {
                 p: s.re,
                 q: s.im,
-                v: self.sol.v[p.bus].norm(),
+                v: dvpp_math::cabs(self.sol.v[p.bus]),
                 f: 1.0 + (th - self.x[self.pcc_state + 1 + k]) / (p.tf * self.wb),
                 angle: th,
             };
@@ -324,7 +324,11 @@ impl Grid {
 
     /// Current bus voltages (complex, frame at f_nom).
     pub fn bus_voltages(&self) -> Vec<(f64, f64)> {
-        self.sol.v.iter().map(|v| (v.norm(), v.arg())).collect()
+        self.sol
+            .v
+            .iter()
+            .map(|&v| (dvpp_math::cabs(v), dvpp_math::carg(v)))
+            .collect()
     }
     /// Complex powers entering a branch at its `from` and `to` ends (current bus voltages).
     pub(super) fn branch_flows(&self, br: &BranchData) -> (C64, C64) {

@@ -337,7 +337,7 @@ mod tests {
                 if t < 0.5 {
                     0.0
                 } else {
-                    1.0 - (-(t - 0.5) / 0.4).exp()
+                    1.0 - dvpp_math::exp(-(t - 0.5) / 0.4)
                 }
             })
             .collect();
@@ -348,15 +348,15 @@ mod tests {
                     0.0
                 } else {
                     let s = t - 0.5;
-                    1.0 - (-s / 0.35).exp() * (1.0 + 0.6 * (6.0 * s).sin())
+                    1.0 - dvpp_math::exp(-s / 0.35) * (1.0 + 0.6 * dvpp_math::sin(6.0 * s))
                 }
             })
             .collect();
         let f: Vec<f64> = (0..=600)
-            .map(|i| 10f64.powf(-3.0 + i as f64 * 0.01))
+            .map(|i| dvpp_math::pow(10f64, -3.0 + i as f64 * 0.01))
             .collect();
         let mag = |f: f64, tau: f64| {
-            -10.0 * (1.0 + (2.0 * std::f64::consts::PI * f * tau).powi(2)).log10()
+            -10.0 * dvpp_math::log10(1.0 + (2.0 * std::f64::consts::PI * f * tau).powi(2))
         };
         let g1: Vec<f64> = f.iter().map(|&f| mag(f, 0.5)).collect();
         let g2: Vec<f64> = f.iter().map(|&f| mag(f, 0.5) + mag(f, 0.02)).collect();
@@ -374,7 +374,7 @@ mod tests {
                 state ^= state << 17;
                 let noise = (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5;
                 let dip = if t > 5.0 {
-                    -0.15 * (1.0 - (-(t - 5.0) / 1.5).exp())
+                    -0.15 * (1.0 - dvpp_math::exp(-(t - 5.0) / 1.5))
                 } else {
                     0.0
                 };

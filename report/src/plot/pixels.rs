@@ -14,8 +14,8 @@ impl Axis {
     /// Position of `v` as a fraction of the axis (0 = lo, 1 = hi).
     pub(super) fn frac(&self, v: f64) -> f64 {
         if self.log {
-            let (a, b) = (self.lo.log10(), self.hi.log10());
-            (v.log10() - a) / (b - a)
+            let (a, b) = (dvpp_math::log10(self.lo), dvpp_math::log10(self.hi));
+            (dvpp_math::log10(v) - a) / (b - a)
         } else {
             (v - self.lo) / (self.hi - self.lo)
         }

@@ -420,7 +420,7 @@ fn overlap(lines: &[Vec<Vec<(f64, f64)>>], bx: f64, by: f64, w: f64, h: f64) -> 
                 {
                     continue;
                 }
-                let len = ((b.0 - a.0).hypot(b.1 - a.1) / 4.0)
+                let len = (dvpp_math::hypot(b.0 - a.0, b.1 - a.1) / 4.0)
                     .ceil()
                     .clamp(1.0, 500.0) as usize;
                 for i in 0..=len {

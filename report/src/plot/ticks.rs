@@ -45,11 +45,11 @@ fn tick_offset(values: &[f64]) -> Option<(f64, String)> {
     if !(span > 0.0 && step > 0.0 && max_abs.is_finite()) {
         return None;
     }
-    let digits = max_abs.log10().floor() - (step.log10() + 1e-9).floor() + 1.0;
+    let digits = dvpp_math::log10(max_abs).floor() - (dvpp_math::log10(step) + 1e-9).floor() + 1.0;
     if digits <= 6.0 {
         return None;
     }
-    let g_exp = (span.log10() + 1e-9).floor() as i32 + 1;
+    let g_exp = (dvpp_math::log10(span) + 1e-9).floor() as i32 + 1;
     let g = pow10(g_exp);
     let offset = (0.5 * (lo + hi) / g).round() * g;
     if offset == 0.0 || !offset.is_finite() {
@@ -77,7 +77,7 @@ fn nice_values(lo: f64, hi: f64, target: usize, max_count: usize) -> Vec<f64> {
     let span = hi - lo;
     let target = target.max(2);
     let max_count = max_count.max(2);
-    let k0 = (span / target as f64).log10().floor() as i32;
+    let k0 = dvpp_math::log10(span / target as f64).floor() as i32;
     // (score, step): prefer counts close to the target, within max_count, and at least 2.
     let mut best: Option<(f64, f64)> = None;
     for k in (k0 - 1)..=(k0 + 2) {
@@ -137,7 +137,7 @@ fn format_ticks(values: &[f64]) -> Vec<String> {
     } else {
         1.0
     };
-    let step_exp = (step.log10() + 1e-9).floor() as i32;
+    let step_exp = (dvpp_math::log10(step) + 1e-9).floor() as i32;
     let sci = max_abs >= 1e5 || (max_abs > 0.0 && max_abs < 1e-2);
     values
         .iter()
@@ -158,7 +158,7 @@ fn format_sci(v: f64, step_exp: i32) -> String {
     if v == 0.0 || !v.is_finite() {
         return "0".into();
     }
-    let mut e = v.abs().log10().floor() as i32;
+    let mut e = dvpp_math::log10(v.abs()).floor() as i32;
     let decimals = (e - step_exp).clamp(0, 12) as usize;
     let mut m = v / 10f64.powi(e);
     // Rounding may carry into the next decade (9.99 → 10.0).
@@ -217,9 +217,9 @@ fn log_ticks(lo: f64, hi: f64, max_count: usize) -> Ticks {
         };
     }
     let max_count = max_count.max(2);
-    let (llo, lhi) = (lo.log10(), hi.log10());
+    let (llo, lhi) = (dvpp_math::log10(lo), dvpp_math::log10(hi));
     let inside = |v: f64| {
-        let l = v.log10();
+        let l = dvpp_math::log10(v);
         l >= llo - 1e-9 && l <= lhi + 1e-9
     };
     let (k_lo, k_hi) = (llo.floor() as i32, lhi.ceil() as i32);
@@ -350,7 +350,7 @@ mod tests {
             assert!((4..=8).contains(&v.len()), "{lo}..{hi}: {v:?}");
             assert!(v.iter().all(|&x| x >= lo - 1e-12 && x <= hi + 1e-12));
             let step = v[1] - v[0];
-            let m = step / 10f64.powf(step.log10().floor());
+            let m = step / dvpp_math::pow(10f64, dvpp_math::log10(step).floor());
             assert!(
                 [1.0, 2.0, 5.0, 10.0].iter().any(|n| (m - n).abs() < 1e-6),
                 "{step}"

@@ -95,7 +95,10 @@ pub(super) fn plant_from_case(
     // The source's EMF from the power-flow point: the PCC voltage plus the drop its current
     // makes in the Thevenin impedance (the loads draw their power-flow P + jQ there).
     let v = pf.der[0].v;
-    let u = (pf.der[0].v_angle.cos(), pf.der[0].v_angle.sin());
+    let u = (
+        dvpp_math::cos(pf.der[0].v_angle),
+        dvpp_math::sin(pf.der[0].v_angle),
+    );
     let (mut p_th, mut q_th) = (0.0, 0.0);
     for l in &case.loads {
         p_th += l.p_mw / base;
@@ -166,8 +169,8 @@ pub(super) fn plant_from_case(
         ("f_nom", case.f_nom),
         ("thevenin.R", r_th),
         ("thevenin.X", x_th),
-        ("thevenin.E", e.0.hypot(e.1)),
-        ("thevenin.angle", e.1.atan2(e.0)),
+        ("thevenin.E", dvpp_math::hypot(e.0, e.1)),
+        ("thevenin.angle", dvpp_math::atan2(e.1, e.0)),
         ("thevenin.H", h_th),
         ("thevenin.D", d_th),
     ] {

@@ -125,20 +125,63 @@ pub fn unpack<R: io::Read + io::Seek>(
     Ok(())
 }
 
-/// The text of the package file `path`: a regular file of at most [`MAX_FILE`] bytes, valid
-/// UTF-8. A pipe or device is refused without being read (opening does not wait for a writer).
-pub fn read_text(path: &Path) -> io::Result<String> {
+/// What a file that is not a regular file is, in words.
+fn kind_of(t: std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if t.is_fifo() {
+        "a named pipe"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_socket() {
+        "a socket"
+    } else if t.is_dir() {
+        "a directory"
+    } else {
+        "not a regular file"
+    }
+}
+
+/// Open `path` for reading only if it is a regular file. The open does not wait (`O_NONBLOCK`:
+/// a named pipe without a writer would block it for ever, deaf to signals), and what it opened
+/// is checked (`fstat`) before a byte is read: a pipe, a device, a socket or a directory is
+/// refused with an error saying which it is ("not a regular file: a named pipe").
+pub fn open_regular(path: &Path) -> io::Result<std::fs::File> {
     let file = std::fs::OpenOptions::new()
         .read(true)
         .custom_flags(libc::O_NONBLOCK)
         .open(path)?;
-    let meta = file.metadata()?;
-    if !meta.is_file() {
+    let kind = file.metadata()?.file_type();
+    if !kind.is_file() {
+        let what = kind_of(kind);
         return Err(io::Error::new(
             io::ErrorKind::InvalidInput,
-            "not a regular file",
+            if what == "not a regular file" {
+                what.to_owned()
+            } else {
+                format!("not a regular file: {what}")
+            },
         ));
     }
+    // A regular file reads the same either way; blocking reads are what the readers expect.
+    // SAFETY: fcntl on a descriptor we own, with integer arguments only.
+    unsafe {
+        use std::os::unix::io::AsRawFd;
+        let fd = file.as_raw_fd();
+        let flags = libc::fcntl(fd, libc::F_GETFL);
+        if flags >= 0 {
+            libc::fcntl(fd, libc::F_SETFL, flags & !libc::O_NONBLOCK);
+        }
+    }
+    Ok(file)
+}
+
+/// The text of the package file `path`: a regular file of at most [`MAX_FILE`] bytes, valid
+/// UTF-8. A pipe or device is refused without being read (opening does not wait for a writer).
+pub fn read_text(path: &Path) -> io::Result<String> {
+    let file = open_regular(path)?;
+    let meta = file.metadata()?;
     if meta.len() > MAX_FILE {
         return Err(too_large());
     }

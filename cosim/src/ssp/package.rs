@@ -64,7 +64,9 @@ pub fn read(path: &Path) -> Result<Package, Error> {
             _temp: None,
         });
     }
-    let file = std::fs::File::open(path).map_err(|e| at(Error(format!("cannot open: {e}"))))?;
+    // Not a blocking open: a named pipe is refused at once (crate::archive::open_regular).
+    let file =
+        crate::archive::open_regular(path).map_err(|e| at(Error(format!("cannot open: {e}"))))?;
     let mut archive = zip::ZipArchive::new(file)
         .map_err(|e| at(Error(format!("not an SSP archive (zip): {e}"))))?;
     if archive.index_for_name(SSD_FILE).is_none() {

@@ -4,8 +4,13 @@
 //! [`unpack`] writes regular files and directories only, each created new (`O_EXCL`) and
 //! without following links; an entry that is a symbolic link, a device, a pipe or a socket, or
 //! whose name is absolute or climbs out with `..`, is refused with the archive's and the
-//! entry's names. [`read_text`] reads a file of a package (a model description, an SSD, a
-//! parameter file) only if it is a regular file of at most [`MAX_FILE`] bytes.
+//! entry's names. Before a byte is written, the sizes the archive declares are checked against
+//! [`MAX_UNPACKED`] (all entries together) and [`MAX_RATIO`] (each entry's unpacked size to its
+//! compressed size), so that a zip bomb is refused without being inflated; while writing, an
+//! entry that inflates to more than it declared is cut there and refused. [`open_regular`]
+//! opens an archive or package file without waiting on a named pipe, and [`read_text`] reads a
+//! file of a package (a model description, an SSD, a parameter file) only if it is a regular
+//! file of at most [`MAX_FILE`] bytes.
 
 use std::io::{self, Read};
 use std::os::unix::fs::{DirBuilderExt, OpenOptionsExt};
@@ -13,6 +18,21 @@ use std::path::{Component, Path, PathBuf};
 
 /// The largest package file [`read_text`] reads (a model description, SSD or parameter file).
 pub const MAX_FILE: u64 = 16 << 20;
+
+/// The most bytes one archive may unpack to, all its entries together: 1 GiB. An FMU of this
+/// project unpacks to a few MB, an SSP with its FMUs to some tens of MB; a thousandfold margin
+/// still keeps a hostile archive from filling the disk (every FMU of a system is unpacked).
+pub const MAX_UNPACKED: u64 = 1 << 30;
+
+/// The largest ratio of an entry's unpacked size to its compressed size: 100 to 1, for entries
+/// of more than [`RATIO_FROM`] bytes. Binaries compress about 3:1 and XML or tables 5-20:1;
+/// ratios near deflate's limit (about 1000:1) are runs of one byte, which is what a zip bomb is
+/// made of (10 MB of zeros deflate to 10 kB).
+pub const MAX_RATIO: u64 = 100;
+
+/// Entries up to this size (1 MiB) are not held to [`MAX_RATIO`]: a small file of repeated
+/// bytes is harmless, and [`MAX_UNPACKED`] bounds them all.
+pub const RATIO_FROM: u64 = 1 << 20;
 
 const S_IFMT: u32 = 0o170000;
 const S_IFREG: u32 = 0o100000;
@@ -75,14 +95,48 @@ fn make_dirs(dir: &Path, rel: &Path) -> io::Result<()> {
     Ok(())
 }
 
+/// Check the sizes `archive` (named `label` in errors) declares, every entry's, before anything
+/// is unpacked: at most [`MAX_UNPACKED`] bytes together, and no entry of more than
+/// [`RATIO_FROM`] bytes unpacking to more than [`MAX_RATIO`] times its compressed size.
+pub fn check_sizes<R: io::Read + io::Seek>(
+    archive: &mut zip::ZipArchive<R>,
+    label: &Path,
+) -> Result<(), String> {
+    let label = label.display();
+    let mut total: u64 = 0;
+    for i in 0..archive.len() {
+        let entry = archive
+            .by_index_raw(i)
+            .map_err(|e| format!("{label}: entry {i}: {e}"))?;
+        let (name, size, packed) = (entry.name(), entry.size(), entry.compressed_size());
+        if size > RATIO_FROM && size / MAX_RATIO > packed {
+            return Err(format!(
+                "{label}: entry '{name}' unpacks to {size} bytes from {packed} ({}:1, more than the {MAX_RATIO}:1 allowed; a zip bomb?): refused",
+                size / packed.max(1)
+            ));
+        }
+        total = total.saturating_add(size);
+        if total > MAX_UNPACKED {
+            return Err(format!(
+                "{label}: entry '{name}' brings the archive's unpacked size to more than {} MiB, the limit: refused",
+                MAX_UNPACKED >> 20
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Unpack the entries of `archive` (named `label` in errors) whose names pass `keep` into
-/// `dir`, a fresh directory of ours. Errors are one line naming the archive and the entry.
+/// `dir`, a fresh directory of ours, after [`check_sizes`]. Errors are one line naming the
+/// archive and the entry; on an error, what was written stays in `dir` for the caller to
+/// remove with it.
 pub fn unpack<R: io::Read + io::Seek>(
     archive: &mut zip::ZipArchive<R>,
     label: &Path,
     dir: &Path,
     keep: impl Fn(&str) -> bool,
 ) -> Result<(), String> {
+    check_sizes(archive, label)?;
     let label = label.display();
     for i in 0..archive.len() {
         let mut entry = archive
@@ -120,7 +174,15 @@ pub fn unpack<R: io::Read + io::Seek>(
                     failed(e)
                 }
             })?;
-        io::copy(&mut entry, &mut file).map_err(failed)?;
+        // The declared size was checked; the data may inflate to more than it says. One byte
+        // past it is enough to know.
+        let declared = entry.size();
+        let written = io::copy(&mut (&mut entry).take(declared + 1), &mut file).map_err(failed)?;
+        if written > declared {
+            return Err(refuse(&format!(
+                "holds more than the {declared} bytes it declares"
+            )));
+        }
     }
     Ok(())
 }
@@ -220,6 +282,41 @@ mod tests {
         ] {
             assert!(relative(bad).is_err(), "{bad}");
         }
+    }
+
+    /// Archives whose entries declare 600 MiB each (sizes set in the central directory by
+    /// hand): one passes, two together exceed [`MAX_UNPACKED`] and are refused, naming the
+    /// entry that crosses the limit, before anything is read.
+    #[test]
+    fn the_declared_total_is_bounded() {
+        let archive = |entries: &[&str]| {
+            let mut w = zip::ZipWriter::new(io::Cursor::new(Vec::new()));
+            for name in entries {
+                let stored = zip::write::SimpleFileOptions::default()
+                    .compression_method(zip::CompressionMethod::Stored);
+                w.start_file(*name, stored).unwrap();
+                io::Write::write_all(&mut w, b"x").unwrap();
+            }
+            let mut bytes = w.finish().unwrap().into_inner();
+            let size = (600u32 << 20).to_le_bytes();
+            for at in 0..bytes.len() - 4 {
+                if bytes[at..at + 4] == [0x50, 0x4b, 0x01, 0x02] {
+                    // Compressed and uncompressed size (stored: equal).
+                    bytes[at + 20..at + 24].copy_from_slice(&size);
+                    bytes[at + 24..at + 28].copy_from_slice(&size);
+                }
+            }
+            zip::ZipArchive::new(io::Cursor::new(bytes)).unwrap()
+        };
+        let label = Path::new("big.fmu");
+        check_sizes(&mut archive(&["a.bin"]), label).unwrap();
+        let e = check_sizes(&mut archive(&["a.bin", "b.bin"]), label).unwrap_err();
+        assert!(
+            e.starts_with("big.fmu: entry 'b.bin'")
+                && e.contains("1024 MiB")
+                && e.ends_with("refused"),
+            "{e}"
+        );
     }
 
     #[test]

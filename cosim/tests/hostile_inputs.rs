@@ -160,3 +160,45 @@ fn a_named_pipe_as_the_system_the_fmu_or_the_out_is_refused_at_once() {
     left.sort();
     assert_eq!(left, ["empty.ssd", "out.csv", "system.ssp", "unit.fmu"]);
 }
+
+/// A record pattern of the SSP's annotation that matches no output was dropped silently, while
+/// the same pattern on `--record` is an error: both are errors now, in the same words.
+#[test]
+fn a_record_pattern_of_the_annotation_that_matches_nothing_is_an_error() {
+    let t = TempDir::new("test-record").unwrap();
+    let ssd = t.path().join("recorded.ssd");
+    let annotated = EMPTY_SSD.replace(
+        "  </ssd:System>\n",
+        r#"  </ssd:System>
+  <ssd:DefaultExperiment startTime="0" stopTime="0.01">
+    <ssd:Annotations>
+      <ssc:Annotation type="org.dvpp-fmu.record"><Record signals="grid.pcc.*"/></ssc:Annotation>
+    </ssd:Annotations>
+  </ssd:DefaultExperiment>
+"#,
+    );
+    std::fs::write(&ssd, annotated).unwrap();
+    let out = t.path().join("out.csv");
+    for extra in [&[][..], &["--record", "grid.pcc.*"][..]] {
+        let output = cosim()
+            .arg(&ssd)
+            .args(["--step", "1e-3"])
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert!(
+            stderr.contains("record pattern 'grid.pcc.*'") && stderr.contains("matches no output"),
+            "{extra:?}: {stderr}"
+        );
+        assert_eq!(
+            extra.is_empty(),
+            stderr.contains("of the system's record annotation"),
+            "{stderr}"
+        );
+        assert!(!out.exists());
+    }
+}

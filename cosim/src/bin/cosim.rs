@@ -25,7 +25,8 @@ precision); an --out ending in .mat writes a MATLAB v4 result file as Modelica t
 system's default set (the patterns its SSP's record annotation names, which the bundler sets
 to what the case-study figures plot; every output if it has none), or --record with
 comma-separated `component.variable` patterns (`*` matches any text: grid.pcc.*,*.p,
-operator.ref.*; `all` for every output; a pattern that matches nothing is an error), every
+operator.ref.*; `all` for every output); a pattern that matches nothing, given or the
+system's, is an error, every
 --output-interval seconds (a whole multiple of the step; default: every step). Jacobi (default) steps every unit from the same inputs; gauss-seidel one after the
 other in dependency order; iterative repeats each step from the saved FMU states until the
 exchanged values settle (--tolerance: relative, default 1e-2, absolute 1e-3 of it; each new

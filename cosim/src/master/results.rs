@@ -646,7 +646,8 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
 pub struct Record {
     /// `component.variable` patterns, `*` matching any run of characters (`grid.pcc.*`,
     /// `*.p`); empty records every output; `None` the system's default set
-    /// ([`RunInfo::record`]), whose patterns may match nothing in a given system.
+    /// ([`RunInfo::record`]). A pattern, given or the system's, that matches no output is an
+    /// error.
     pub patterns: Option<Vec<String>>,
     /// Record at this interval, s: a whole multiple of the communication step (`None`: each
     /// communication point).
@@ -758,9 +759,9 @@ impl<O: Observer> Select<O> {
 impl<O: Observer> Observer for Select<O> {
     fn start(&mut self, run: &RunInfo) -> Result<(), Error> {
         self.every = self.record.every(run.step)?;
-        let (p, strict) = match &self.record.patterns {
-            Some(p) => (p.as_slice(), true),
-            None => (run.record, false),
+        let (p, whose) = match &self.record.patterns {
+            Some(p) => (p.as_slice(), ""),
+            None => (run.record, " of the system's record annotation"),
         };
         self.keep = (0..run.columns.len())
             .filter(|&k| k == 0 || p.is_empty() || p.iter().any(|p| matches(p, &run.columns[k])))
@@ -768,9 +769,11 @@ impl<O: Observer> Observer for Select<O> {
         let unmatched = p
             .iter()
             .find(|p| !run.columns[1..].iter().any(|c| matches(p, c)));
-        if let Some(none) = unmatched.filter(|_| strict) {
+        // A pattern of the system's own is held to what `--record` is: one that matches
+        // nothing is a mistake in the system (a renamed component or variable), not silence.
+        if let Some(none) = unmatched {
             return Err(Error::Output(format!(
-                "record pattern '{none}' matches no output of {} (outputs are named component.variable, e.g. {})",
+                "record pattern '{none}'{whose} matches no output of {} (outputs are named component.variable, e.g. {})",
                 run.system,
                 run.columns.get(1).map_or("", String::as_str)
             )));
@@ -866,8 +869,22 @@ mod tests {
             .unwrap_err();
         assert!(e.to_string().contains("not a whole multiple"), "{e}");
         assert!(Record::parse("all, *.p").is_all());
-        // The system's default set may name what a system lacks.
+        // The system's default set is held to the same rule, in the same words, saying whose
+        // the pattern is (it was dropped silently).
         let default = ["*.p".to_string(), "operator.*".to_string()];
+        let mut s = Select::new(crate::master::Recorder::default(), Record::system_default());
+        let e = s
+            .start(&RunInfo {
+                record: &default,
+                ..info(&columns)
+            })
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("record pattern 'operator.*' of the system's record annotation matches no output of s"),
+            "{e}"
+        );
+        let default = ["*.p".to_string()];
         let mut s = Select::new(crate::master::Recorder::default(), Record::system_default());
         s.start(&RunInfo {
             record: &default,

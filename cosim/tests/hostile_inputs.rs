@@ -202,3 +202,57 @@ fn a_record_pattern_of_the_annotation_that_matches_nothing_is_an_error() {
         assert!(!out.exists());
     }
 }
+
+/// `--out` could name an FMU inside an SSP directory, and a completed run replaced the FMU by
+/// its results: an `--out` inside an SSP directory given as the input, or naming a file the
+/// system reads, is refused before anything is loaded, and the file is left as it was.
+#[test]
+fn an_out_inside_the_input_or_naming_an_fmu_it_reads_is_refused() {
+    let t = TempDir::new("test-out-input").unwrap();
+    let dir = t.path().join("system");
+    std::fs::create_dir_all(dir.join("resources")).unwrap();
+    let fmu = dir.join("resources/a.fmu");
+    std::fs::write(&fmu, "the FMU").unwrap();
+    let ssd = EMPTY_SSD.replace(
+        "<ssd:System name=\"empty\">",
+        "<ssd:System name=\"empty\"><ssd:Elements><ssd:Component name=\"a\" source=\"resources/a.fmu\"/></ssd:Elements>",
+    );
+    std::fs::write(dir.join("SystemStructure.ssd"), ssd).unwrap();
+    let cases: [(PathBuf, PathBuf, &str); 3] = [
+        (dir.clone(), fmu.clone(), "lies inside the SSP directory"),
+        (
+            dir.clone(),
+            dir.join("results.csv"),
+            "lies inside the SSP directory",
+        ),
+        (
+            dir.join("SystemStructure.ssd"),
+            fmu.clone(),
+            "is the FMU of component 'a'",
+        ),
+    ];
+    for (system, out, why) in cases {
+        let output = cosim()
+            .arg(&system)
+            .args(["--stop", "1", "--step", "1e-3", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert_eq!(output.status.code(), Some(1), "{stderr}");
+        assert_eq!(stderr.lines().count(), 1, "{stderr}");
+        assert!(stderr.contains(why) && stderr.contains("--out"), "{stderr}");
+        assert_eq!(std::fs::read_to_string(&fmu).unwrap(), "the FMU");
+        assert!(!dir.join("results.csv").exists());
+    }
+    // Beside the directory is fine (the run then fails on the FMU, which is not one).
+    let output = cosim()
+        .arg(&dir)
+        .args(["--stop", "1", "--step", "1e-3", "--out"])
+        .arg(t.path().join("r.csv"))
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!stderr.contains("--out"), "{stderr}");
+    assert_eq!(std::fs::read_to_string(&fmu).unwrap(), "the FMU");
+}

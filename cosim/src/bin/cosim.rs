@@ -3,9 +3,9 @@
 use dvpp_cosim::federate::{self, FederateOptions, FederationOptions};
 use dvpp_cosim::master::{
     self, CsvWriter, End, MatWriter, Observer, Options, Progress, Record, Recorder, Scheme, Select,
-    System,
+    Source, System,
 };
-use dvpp_cosim::{interrupt, Table};
+use dvpp_cosim::{interrupt, ssp, Table};
 use dvpp_report::plot::{Figure, Panel, Style};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -252,6 +252,44 @@ fn check_out(out: &Path, system: &Path) -> Result<(), String> {
             input.display()
         ));
     }
+    // An SSP directory is the system's package (its SSD, FMUs and parameter files): results
+    // go elsewhere. The directory holding an .ssd is not: results beside it are usual.
+    if system.is_dir() {
+        let inside = |dir: &Path| {
+            let parent = match out.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p,
+                _ => Path::new("."),
+            };
+            match (parent.canonicalize(), dir.canonicalize()) {
+                (Ok(p), Ok(d)) => p.starts_with(d),
+                _ => false,
+            }
+        };
+        if inside(system) {
+            return Err(format!(
+                "--out {}: lies inside the SSP directory {} (the system's input); write the results elsewhere",
+                out.display(),
+                system.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuse an `out` that is a file the system `package` reads: a component's FMU (which may lie
+/// outside the package, `file://`), before anything is loaded.
+fn check_out_sources(out: &Path, package: &ssp::Package) -> Result<(), String> {
+    for c in &package.system.components {
+        let source = package.source_path(c);
+        if same_file(out, &source) {
+            return Err(format!(
+                "--out {}: is the FMU of component '{}' ({}), an input of the system; it would be overwritten",
+                out.display(),
+                c.name,
+                source.display()
+            ));
+        }
+    }
     Ok(())
 }
 
@@ -320,7 +358,31 @@ fn main() -> ExitCode {
     } else {
         &mut *builtin
     };
-    let outcome = match System::builder(&args.system)
+    // The system read once, here, so that --out is checked against the files it names before
+    // any FMU is loaded (one .fmu on its own is the input itself, checked above).
+    let is_fmu = args.system.extension().is_some_and(|e| e == "fmu");
+    let package = if is_fmu {
+        None
+    } else {
+        match ssp::read(&args.system) {
+            Ok(p) => Some(p),
+            Err(e) => {
+                eprintln!("cosim: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    };
+    if let (Some(out), Some(package)) = (&out, &package) {
+        if let Err(e) = check_out_sources(out, package) {
+            eprintln!("cosim: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
+    let source: Source = match &package {
+        Some(p) => p.into(),
+        None => (&args.system).into(),
+    };
+    let outcome = match System::builder(source)
         .threads(args.threads)
         .algorithm(algorithm)
         .run(&args.opts, &mut observers)

@@ -39,9 +39,7 @@ mod unit;
 pub use algorithm::{Algorithm, Coupling, GaussSeidel, Iterative, Jacobi};
 pub use error::Error;
 pub use observer::{End, Observer, Progress, Recorder, RunInfo};
-pub use results::{
-    matches, partial_path, Csv, CsvWriter, Format, Mat, MatWriter, Record, ResultWriter, Select,
-};
+pub use results::{matches, Csv, CsvWriter, Format, Mat, MatWriter, Record, ResultWriter, Select};
 pub use run::{Outcome, MAX_STEPS};
 pub use system::{Builder, Source, System};
 

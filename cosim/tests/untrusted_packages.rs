@@ -301,3 +301,97 @@ fn parameter_files_must_be_regular_and_bounded() {
         .0;
     assert!(e.contains("16 MiB") && !e.contains('\n'), "{e}");
 }
+
+/// Temporary directories of ours whose name holds `stem` (what an unpacking left behind).
+fn unpacked_dirs(stem: &str) -> Vec<PathBuf> {
+    std::fs::read_dir(std::env::temp_dir())
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with("dvpp-") && n.contains(stem))
+        })
+        .collect()
+}
+
+/// An archive of `entries` (name, contents), each deflated.
+fn write_deflated(path: &Path, entries: &[(&str, &[u8])]) {
+    let mut w = zip::ZipWriter::new(std::fs::File::create(path).unwrap());
+    for &(name, data) in entries {
+        let options = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Deflated);
+        w.start_file(name, options).unwrap();
+        w.write_all(data).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+/// A zip bomb: 10 MB of zeros deflate to about 10 kB (1000:1). Every entry was inflated in
+/// full before any check (1 GB written per MB of archive); now the declared sizes are checked
+/// first, and the archive is refused with its name and the entry's, nothing unpacked.
+#[test]
+fn an_entry_that_inflates_far_beyond_its_size_is_refused_before_unpacking() {
+    let t = TempDir::new("test-bomb").unwrap();
+    let zeros = vec![0u8; 10 << 20];
+    let stem = format!("bomb{}", std::process::id());
+    let fmu = t.path().join(format!("{stem}.fmu"));
+    write_deflated(
+        &fmu,
+        &[
+            ("modelDescription.xml", b"<fmiModelDescription/>"),
+            ("resources/zeros.bin", &zeros),
+        ],
+    );
+    let size = std::fs::metadata(&fmu).unwrap().len();
+    assert!(size < 100 << 10, "a small archive: {size} bytes");
+    let e = Fmu::load(&fmu).err().expect("refused").0;
+    assert_refused(&e, &fmu, "resources/zeros.bin");
+    assert!(e.contains("100:1"), "the limit is stated: {e}");
+    assert!(unpacked_dirs(&stem).is_empty(), "left behind");
+
+    let ssp = t.path().join(format!("{stem}.ssp"));
+    let ssd_text = ssd("", CONNECTION);
+    write_deflated(
+        &ssp,
+        &[
+            ("SystemStructure.ssd", ssd_text.as_bytes()),
+            ("resources/a.fmu", &zeros),
+        ],
+    );
+    let e = ssp::read(&ssp).unwrap_err().0;
+    assert_refused(&e, &ssp, "resources/a.fmu");
+    assert!(unpacked_dirs(&stem).is_empty(), "left behind");
+}
+
+/// The declared size can lie: an entry that holds more than it declares is cut one byte past
+/// its declared size and refused (the ratio check alone would pass it).
+#[test]
+fn an_entry_larger_than_it_declares_is_cut_and_refused() {
+    let t = TempDir::new("test-lying-size").unwrap();
+    let data = vec![7u8; 2 << 20];
+    let fmu = t.path().join("lying.fmu");
+    write_zip(
+        &fmu,
+        &[
+            ("modelDescription.xml", 0o100644, b"<fmiModelDescription/>"),
+            ("resources/big.bin", 0o100644, &data),
+        ],
+    );
+    // Declare 1000 bytes in the local and the central header (uncompressed size fields).
+    let mut bytes = std::fs::read(&fmu).unwrap();
+    let name = b"resources/big.bin";
+    for (signature, at_size, at_name) in [
+        ([0x50, 0x4b, 0x03, 0x04], 22, 30),
+        ([0x50, 0x4b, 0x01, 0x02], 24, 46),
+    ] {
+        let at = (0..bytes.len() - at_name - name.len())
+            .find(|&i| bytes[i..i + 4] == signature && bytes[i + at_name..].starts_with(name))
+            .expect("the entry's header");
+        bytes[at + at_size..at + at_size + 4].copy_from_slice(&1000u32.to_le_bytes());
+    }
+    std::fs::write(&fmu, bytes).unwrap();
+    let e = Fmu::load(&fmu).err().expect("refused").0;
+    assert_refused(&e, &fmu, "resources/big.bin");
+    assert!(e.contains("more than the 1000 bytes it declares"), "{e}");
+}

@@ -2,10 +2,10 @@
 
 use dvpp_cosim::federate::{self, FederateOptions, FederationOptions};
 use dvpp_cosim::master::{
-    self, partial_path, CsvWriter, End, MatWriter, Observer, Options, Progress, Record, Recorder,
-    Scheme, Select, System,
+    self, CsvWriter, End, MatWriter, Observer, Options, Progress, Record, Recorder, Scheme, Select,
+    Source, System,
 };
-use dvpp_cosim::{interrupt, Table};
+use dvpp_cosim::{interrupt, ssp, Table};
 use dvpp_report::plot::{Figure, Panel, Style};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -25,7 +25,8 @@ precision); an --out ending in .mat writes a MATLAB v4 result file as Modelica t
 system's default set (the patterns its SSP's record annotation names, which the bundler sets
 to what the case-study figures plot; every output if it has none), or --record with
 comma-separated `component.variable` patterns (`*` matches any text: grid.pcc.*,*.p,
-operator.ref.*; `all` for every output; a pattern that matches nothing is an error), every
+operator.ref.*; `all` for every output); a pattern that matches nothing, given or the
+system's, is an error, every
 --output-interval seconds (a whole multiple of the step; default: every step). Jacobi (default) steps every unit from the same inputs; gauss-seidel one after the
 other in dependency order; iterative repeats each step from the saved FMU states until the
 exchanged values settle (--tolerance: relative, default 1e-2, absolute 1e-3 of it; each new
@@ -34,12 +35,15 @@ attempt moves --relaxation (default 1) of the way to the values obtained; at mos
 --threads N steps the units of each Jacobi step (and iterative attempt) on N threads (`all`:
 one per core; default 1) with results identical bit for bit; it pays where cores are idle
 (docs/scaling.md). Components with identical binaries share one loaded library, each with its
-own resources. Rows go to FILE.csv.partial, renamed to FILE.csv when the run completes; a run
-that fails or is stopped by SIGINT/SIGTERM/SIGHUP (at the next communication point; further
-signals are ignored while it stops) leaves every complete row, and never part of one, in
-FILE.csv.partial, removes its unpacked files and exits non-zero (1 on an error, such as a
-full disk or a file size limit, 128 + the signal's number when interrupted); a device or named
-pipe (/dev/null) is written in place; FILE.csv may not be a directory or the input. --no-csv
+own resources. Rows go to FILE.csv.partial (created new; when that name is taken, by another
+run writing FILE.csv or by rows an earlier run kept, FILE.csv.<pid>-<n>.partial), renamed to
+FILE.csv when the run completes; a run that fails or is stopped by SIGINT/SIGTERM/SIGHUP (at
+the next communication point; further signals are ignored while it stops) leaves every
+complete row, and never part of one, in its own .partial file, which it names, removes its
+unpacked files and exits non-zero (1 on an error, such as a full disk or a file size limit,
+128 + the signal's number when interrupted); a device or named pipe (/dev/null) is written in
+place (a pipe nothing reads is refused); FILE.csv may not be a directory, the input, inside
+an SSP directory given as the input, or a file the system reads. --no-csv
 records nothing (benchmarks). --plot draws the --signals (default: the first six columns)
 against time as an SVG figure; it keeps the results in memory.
 
@@ -108,6 +112,14 @@ impl Results {
         match self {
             Results::Csv(s) => s.columns().len(),
             Results::Mat(s) => s.columns().len(),
+        }
+    }
+
+    /// The file that holds the rows of a run that did not complete, if there is one.
+    fn kept(&self) -> Option<&Path> {
+        match self {
+            Results::Csv(s) => s.inner.kept(),
+            Results::Mat(s) => s.inner.kept(),
         }
     }
 }
@@ -231,13 +243,50 @@ fn check_out(out: &Path, system: &Path) -> Result<(), String> {
     if system.is_dir() {
         inputs.push(system.join(dvpp_cosim::ssp::SSD_FILE));
     }
-    for written in [out.to_path_buf(), partial_path(out)] {
-        if let Some(input) = inputs.iter().find(|i| same_file(&written, i)) {
+    // The rows go to a `.partial` file created new, which cannot be an input; only the
+    // rename on completion could replace one.
+    if let Some(input) = inputs.iter().find(|i| same_file(out, i)) {
+        return Err(format!(
+            "--out {}: is the input {}; it would be overwritten",
+            out.display(),
+            input.display()
+        ));
+    }
+    // An SSP directory is the system's package (its SSD, FMUs and parameter files): results
+    // go elsewhere. The directory holding an .ssd is not: results beside it are usual.
+    if system.is_dir() {
+        let inside = |dir: &Path| {
+            let parent = match out.parent() {
+                Some(p) if !p.as_os_str().is_empty() => p,
+                _ => Path::new("."),
+            };
+            match (parent.canonicalize(), dir.canonicalize()) {
+                (Ok(p), Ok(d)) => p.starts_with(d),
+                _ => false,
+            }
+        };
+        if inside(system) {
             return Err(format!(
-                "--out {}: {} is the input {}; it would be overwritten",
+                "--out {}: lies inside the SSP directory {} (the system's input); write the results elsewhere",
                 out.display(),
-                written.display(),
-                input.display()
+                system.display()
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuse an `out` that is a file the system `package` reads: a component's FMU (which may lie
+/// outside the package, `file://`), before anything is loaded.
+fn check_out_sources(out: &Path, package: &ssp::Package) -> Result<(), String> {
+    for c in &package.system.components {
+        let source = package.source_path(c);
+        if same_file(out, &source) {
+            return Err(format!(
+                "--out {}: is the FMU of component '{}' ({}), an input of the system; it would be overwritten",
+                out.display(),
+                c.name,
+                source.display()
             ));
         }
     }
@@ -309,7 +358,31 @@ fn main() -> ExitCode {
     } else {
         &mut *builtin
     };
-    let outcome = match System::builder(&args.system)
+    // The system read once, here, so that --out is checked against the files it names before
+    // any FMU is loaded (one .fmu on its own is the input itself, checked above).
+    let is_fmu = args.system.extension().is_some_and(|e| e == "fmu");
+    let package = if is_fmu {
+        None
+    } else {
+        match ssp::read(&args.system) {
+            Ok(p) => Some(p),
+            Err(e) => {
+                eprintln!("cosim: {e}");
+                return ExitCode::FAILURE;
+            }
+        }
+    };
+    if let (Some(out), Some(package)) = (&out, &package) {
+        if let Err(e) = check_out_sources(out, package) {
+            eprintln!("cosim: {e}");
+            return ExitCode::FAILURE;
+        }
+    }
+    let source: Source = match &package {
+        Some(p) => p.into(),
+        None => (&args.system).into(),
+    };
+    let outcome = match System::builder(source)
         .threads(args.threads)
         .algorithm(algorithm)
         .run(&args.opts, &mut observers)
@@ -325,12 +398,14 @@ fn main() -> ExitCode {
         eprintln!("cosim: {} warning(s), see above", outcome.warnings.len());
     }
     let rows = results.as_ref().map_or(0, Results::rows);
-    let partial = |out: &Path| {
-        format!(
+    // What a run that did not complete kept, naming the file that holds it (its own).
+    let partial = || match results.as_ref().and_then(Results::kept) {
+        Some(kept) => format!(
             "{rows} complete rows up to t = {} s in {}",
             outcome.simulated,
-            partial_path(out).display()
-        )
+            kept.display()
+        ),
+        None => "no row was written, and no file is left".to_owned(),
     };
     match &outcome.end {
         End::Completed => {
@@ -357,8 +432,8 @@ fn main() -> ExitCode {
         }
         End::Interrupted { signal, at } => {
             eprintln!("cosim: {name}: interrupted by signal {signal} at t = {at} s");
-            if let Some(out) = &out {
-                eprintln!("cosim: incomplete results: {}", partial(out));
+            if out.is_some() {
+                eprintln!("cosim: incomplete results: {}", partial());
             }
             return ExitCode::from((128 + signal).clamp(1, 255) as u8);
         }
@@ -366,8 +441,8 @@ fn main() -> ExitCode {
             eprintln!("cosim: {error}");
             if outcome.samples > 0 {
                 eprintln!("cosim: {name}: the run stopped after t = {at} s");
-                if let Some(out) = &out {
-                    eprintln!("cosim: incomplete results: {}", partial(out));
+                if out.is_some() {
+                    eprintln!("cosim: incomplete results: {}", partial());
                 }
             }
             return ExitCode::FAILURE;

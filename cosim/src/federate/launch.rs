@@ -1,6 +1,8 @@
 //! The launcher of a whole federation on one machine: `helics_broker` on loopback, one
 //! `cosim federate` process per group of components, their CSVs merged in the master's column
-//! order; and the commands to run the same federation on several machines.
+//! order; and the commands to run the same federation on several machines. Each federate's
+//! TMPDIR is a directory of the launcher's, removed once every federate has ended, so that what
+//! they unpacked goes however they ended (stopped, killed or failed).
 
 use super::{component_names, err, find_broker, find_library, DEFAULT_CORE};
 use crate::master::{Error, Options, System};
@@ -216,6 +218,17 @@ fn child(program: &Path) -> std::process::Command {
     c
 }
 
+/// Point `c`'s temporary directory (`TMPDIR`) into `scratch`, the launcher's: whatever a
+/// federate unpacks (the SSP and every FMU of the system, each federate loading the whole
+/// system) is removed with `scratch` once the federate has ended, however it ended (a
+/// federate stopped by a signal or by SIGKILL runs no destructor of its own).
+fn in_scratch<'c>(
+    c: &'c mut std::process::Command,
+    scratch: &crate::tmp::TempDir,
+) -> &'c mut std::process::Command {
+    c.env("TMPDIR", scratch.path())
+}
+
 /// End a child and reap it.
 fn stop(c: &mut std::process::Child) {
     let _ = c.kill();
@@ -293,6 +306,9 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
     });
     std::fs::create_dir_all(&dir)
         .map_err(|e| Error::Federation(format!("{}: {e}", dir.display())))?;
+    // Declared before the children: dropped (removed) after every path below has reaped them.
+    let scratch = crate::tmp::TempDir::new("federation")
+        .map_err(|e| Error::Federation(format!("cannot make the federates' TMPDIR: {e}")))?;
     let core = o.core.as_deref().unwrap_or(DEFAULT_CORE);
     let started = Instant::now();
     let coordination = o.timing.unwrap_or(Timing::for_federates(feds.len()));
@@ -351,7 +367,7 @@ pub fn run_federation(o: &FederationOptions, exe: &Path) -> Result<FederationRep
             )
             .join(" ")
         ));
-        match child(exe)
+        match in_scratch(&mut child(exe), &scratch)
             .args(args(&address, &csv))
             .stdout(Stdio::piped())
             .spawn()
@@ -456,6 +472,33 @@ mod tests {
             .unwrap_err()
             .to_string()
             .contains("'nosuch'"));
+    }
+
+    /// A federate killed (SIGKILL, as `stop` does) leaves what it unpacked in its TMPDIR; the
+    /// launcher's scratch directory takes it away once the federate is reaped.
+    #[test]
+    fn what_a_killed_federate_unpacked_goes_with_the_scratch_directory() {
+        let scratch = crate::tmp::TempDir::new("test-federation").unwrap();
+        let root = scratch.path().to_path_buf();
+        let mut c = in_scratch(&mut child(Path::new("/bin/sh")), &scratch)
+            .args([
+                "-c",
+                "mkdir \"$TMPDIR/dvpp-fmu-x\" && touch \"$TMPDIR/dvpp-fmu-x/model.so\" && sleep 60",
+            ])
+            .spawn()
+            .unwrap();
+        let since = Instant::now();
+        while !root.join("dvpp-fmu-x/model.so").exists() {
+            assert!(since.elapsed() < Duration::from_secs(10), "never unpacked");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        stop(&mut c);
+        assert!(
+            root.join("dvpp-fmu-x").exists(),
+            "a killed process cleans nothing"
+        );
+        drop(scratch);
+        assert!(!root.exists(), "left behind");
     }
 
     #[test]

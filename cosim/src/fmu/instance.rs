@@ -3,6 +3,7 @@
 use super::log::{dvpp_cosim_logger, LogRecord, LogSink};
 use super::{err, Error, Fmu, Status};
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
+use std::ptr::NonNull;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -24,36 +25,41 @@ impl Fmu {
         resources: &str,
         fmu_type: i32,
     ) -> Result<Instance, Error> {
-        let sink = Box::new(LogSink {
+        // The sink and the callbacks are where the FMU's pointers lead for the instance's whole
+        // life: each is allocated once here and never moved, re-boxed or borrowed uniquely
+        // again (see `Instance`), and freed only after `fmi2FreeInstance`.
+        let sink = Arc::new(LogSink {
             instance: name.to_owned(),
             records: Mutex::new(Vec::new()),
             held: AtomicUsize::new(0),
             echo: std::env::var_os("DVPP_FMU_LOG").is_some(),
         });
-        let sink_ptr = Box::into_raw(sink);
-        let callbacks = Box::new(CallbackFunctions {
+        let callbacks = NonNull::from(Box::leak(Box::new(CallbackFunctions {
             logger: Some(dvpp_cosim_logger),
             allocate_memory: Some(alloc_callback),
             free_memory: Some(free_callback),
             step_finished: None,
-            component_environment: sink_ptr as *mut c_void,
-        });
+            // Only ever read through shared references (`log_sink`); the Arc keeps it alive.
+            component_environment: Arc::as_ptr(&sink) as *mut c_void,
+        })));
         let (c_name, c_guid, c_res) = (cstring(name)?, cstring(guid)?, cstring(resources)?);
-        // SAFETY: valid C strings and a callbacks struct that lives as long as the instance.
+        // SAFETY: valid C strings; the callbacks struct and the sink it points to stay at their
+        // addresses until the instance is freed (`Instance`'s Drop), or until just below when
+        // no instance was made.
         let component = unsafe {
             (self.library.api.instantiate)(
                 c_name.as_ptr(),
                 fmu_type,
                 c_guid.as_ptr(),
                 c_res.as_ptr(),
-                &*callbacks,
+                callbacks.as_ptr(),
                 0,
                 0,
             )
         };
-        // SAFETY: we own the sink until the instance is dropped.
-        let sink = unsafe { Box::from_raw(sink_ptr) };
         if component.is_null() {
+            // SAFETY: leaked from a Box above and not used by anyone now: no instance exists.
+            drop(unsafe { Box::from_raw(callbacks.as_ptr()) });
             let last = sink
                 .records
                 .lock()
@@ -87,11 +93,18 @@ unsafe extern "C" fn free_callback(p: *mut c_void) {
 }
 
 /// An instance of a loaded FMU; freed on drop.
+///
+/// The FMU keeps two pointers of ours for as long as the instance lives: to the callbacks
+/// struct, and (as its `componentEnvironment`) to the log sink, which it may call at any time.
+/// Both stay at one address and are only ever shared: the sink is an `Arc` (moving the
+/// `Instance` moves the handle, not the sink, and asserts no unique access to it), the
+/// callbacks a leaked `Box` held by address. Both are freed after `fmi2FreeInstance`.
 pub struct Instance {
     fmu: Arc<Fmu>,
     component: Component,
-    sink: Box<LogSink>,
-    callbacks: Box<CallbackFunctions>,
+    sink: Arc<LogSink>,
+    /// A leaked `Box`, freed in Drop.
+    callbacks: NonNull<CallbackFunctions>,
 }
 
 // SAFETY: an FMI 2.0 instance shares no state with the other instances of its binary through
@@ -431,8 +444,10 @@ impl Instance {
 
 impl Drop for Instance {
     fn drop(&mut self) {
-        // SAFETY: the component is valid and freed once; callbacks outlive it.
+        // SAFETY: the component is valid and freed once; the callbacks and the sink outlive it.
         unsafe { (self.fmu.library.api.free_instance)(self.component) };
-        let _ = &self.callbacks;
+        // SAFETY: leaked from a Box in `instantiate_with` and freed once, here, after the
+        // instance that used it (the sink's Arc is dropped with the other fields, after this).
+        drop(unsafe { Box::from_raw(self.callbacks.as_ptr()) });
     }
 }

@@ -129,8 +129,20 @@ pub(super) fn twin_in(
     if candidates(id, entry.size()).is_empty() {
         return Ok(None);
     }
-    let mut bytes = Vec::with_capacity(entry.size() as usize);
-    std::io::Read::read_to_end(&mut entry, &mut bytes).map_err(|e| e.to_string())?;
+    // The archive's sizes were checked (crate::archive::check_sizes) before this is called;
+    // the data may still inflate to more than the entry declares: read one byte past it.
+    let declared = entry.size();
+    let mut bytes = Vec::with_capacity(declared as usize);
+    std::io::Read::read_to_end(
+        &mut std::io::Read::take(&mut entry, declared + 1),
+        &mut bytes,
+    )
+    .map_err(|e| e.to_string())?;
+    if bytes.len() as u64 > declared {
+        return Err(format!(
+            "binaries/linux64/{id}.so holds more than the {declared} bytes it declares"
+        ));
+    }
     Ok(Fmu::twin(id, &bytes))
 }
 

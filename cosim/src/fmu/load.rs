@@ -46,7 +46,8 @@ impl Fmu {
     /// write one binary to disk, not a thousand.
     pub fn load_with(path: &Path, sharing: Sharing) -> Result<Fmu, Error> {
         let at = |e: String| Error(format!("{}: {e}", path.display()));
-        let file = std::fs::File::open(path)
+        // Not a blocking open: a named pipe is refused at once (crate::archive::open_regular).
+        let file = crate::archive::open_regular(path)
             .map_err(|e| Error(format!("cannot open {}: {e}", path.display())))?;
         let mut archive = zip::ZipArchive::new(file)
             .map_err(|e| Error(format!("{} is not an FMU archive: {e}", path.display())))?;

@@ -19,7 +19,7 @@ pub struct RunInfo<'a> {
     /// Communication step, s.
     pub step: f64,
     /// The `component.variable` patterns the system records by default (its SSP's record
-    /// annotation; empty: every output), for [`super::Select`].
+    /// annotation; empty: every output), for [`super::Select`]; each must match an output.
     pub record: &'a [String],
 }
 

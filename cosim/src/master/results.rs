@@ -1,19 +1,26 @@
 //! Result files of a run (CSV, MATLAB v4 `.mat`) and the choice of what they record (signal
 //! patterns, output interval).
 //!
-//! Both files are written as the run goes, through a buffer of whole rows, to `<path>.partial`,
-//! renamed to `path` only when the run completes: a file named `path` is always a complete run,
-//! and a `.partial` file (left by an interrupted or failed run) holds every complete row up to
-//! where the run stopped, never part of a row. A write that fails part-way (a full disk, a file
-//! size limit) is cut back to the last whole row. A run that stops before its first row leaves
-//! no file. An existing file at `path` is replaced only by a complete run. A CSV `path` that
-//! exists and is not a regular file or directory (`/dev/null`, a named pipe) is written
-//! directly: renaming a file over it would replace the device.
+//! Both files are written as the run goes, through a buffer of whole rows, to a `.partial` file
+//! of the run's own, renamed to `path` only when the run completes: a file named `path` is always
+//! a complete run, and a `.partial` file (left by an interrupted or failed run) holds every
+//! complete row up to where the run stopped, never part of a row. The `.partial` file is created
+//! new (`O_EXCL`), as `<path>.partial` when that name is free and `<path>.<pid>-<n>.partial`
+//! when it is taken (another run writing the same `path`, or rows an earlier run kept), so that
+//! two runs never write one file and only the run that made it renames it
+//! ([`ResultWriter::kept`] names it). A write that fails part-way (a full disk, a file size
+//! limit) is cut back to the last whole row. A run that stops before its first row leaves no
+//! file. An existing file at `path` is replaced only by a complete run. A CSV `path` that exists
+//! and is not a regular file or directory (`/dev/null`, a named pipe) is written directly:
+//! renaming a file over it would replace the device; a named pipe that nobody reads is refused
+//! at once (opening it would wait for a reader), and a pipe whose reader stops reading does not
+//! keep a signal from ending the run.
 
 use super::{End, Error, Observer, RunInfo};
 use crate::table::{write_header, write_row};
 use std::fs::File;
-use std::os::unix::fs::FileExt;
+use std::os::unix::fs::{FileExt, OpenOptionsExt};
+use std::os::unix::io::AsRawFd;
 use std::path::{Path, PathBuf};
 
 /// How a result file lays out its header and rows.
@@ -171,7 +178,11 @@ impl Format for Mat {
 /// row and ends with it.
 pub struct ResultWriter<F: Format + Send + 'static> {
     path: PathBuf,
+    /// The file the rows go to: this writer's own `.partial` file once created (`path` itself
+    /// when written in place; before [`Observer::start`], the name it tries first).
     partial: PathBuf,
+    /// Whether `partial` exists and holds this run's rows (created, not yet renamed or removed).
+    holds: bool,
     /// Written in place (a device or pipe), no `.partial`.
     direct: bool,
     /// The format until the writer thread takes it.
@@ -236,6 +247,7 @@ impl<F: Format + Send + Default + 'static> ResultWriter<F> {
             } else {
                 partial_path(path)
             },
+            holds: false,
             direct,
             format: Some(F::default()),
             writer: None,
@@ -256,6 +268,14 @@ impl<F: Format + Send + 'static> ResultWriter<F> {
 
     fn io(&self, e: std::io::Error) -> Error {
         Error::Output(format!("{}: {e}", self.partial.display()))
+    }
+
+    /// The file that holds the rows of a run that has not completed (interrupted, failed or
+    /// still going): this writer's own `.partial` file, or `path` when written in place; `None`
+    /// when there is no such file (not started, no row kept, or renamed to `path` on
+    /// completion). Messages about the rows a run kept name this file.
+    pub fn kept(&self) -> Option<&Path> {
+        (self.holds || (self.direct && self.rows() > 0)).then_some(self.partial.as_path())
     }
 
     /// Hand the current chunk to the writer thread (and take an empty one back); the writer's
@@ -330,6 +350,12 @@ impl<F: Format> Sink<F> {
                 Ok(0) => break Some(std::io::Error::from(std::io::ErrorKind::WriteZero)),
                 Ok(n) => done += n,
                 Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                // A pipe or device opened non-blocking whose reader is not reading.
+                Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                    if let Err(e) = wait_writable(file) {
+                        break Some(e);
+                    }
+                }
                 Err(e) => break Some(e),
             }
         };
@@ -397,11 +423,95 @@ impl<F: Format> Sink<F> {
     }
 }
 
-/// Where a [`ResultWriter`] keeps the rows of `path` until the run completes.
-pub fn partial_path(path: &Path) -> PathBuf {
+/// Wait until `file` (a pipe or device written non-blocking) takes more bytes; an error when a
+/// signal asks the run to stop first (the reader may never read again).
+fn wait_writable(file: &File) -> std::io::Result<()> {
+    loop {
+        let mut fd = libc::pollfd {
+            fd: file.as_raw_fd(),
+            events: libc::POLLOUT,
+            revents: 0,
+        };
+        // SAFETY: one valid pollfd, for 100 ms at most.
+        let n = unsafe { libc::poll(&mut fd, 1, 100) };
+        if n > 0 {
+            return Ok(());
+        }
+        if let Some(signal) = crate::interrupt::requested() {
+            return Err(std::io::Error::other(format!(
+                "stopped by signal {signal} while the reader was not reading"
+            )));
+        }
+        if n < 0 {
+            let e = std::io::Error::last_os_error();
+            if e.kind() != std::io::ErrorKind::Interrupted {
+                return Err(e);
+            }
+        }
+    }
+}
+
+/// The name a [`ResultWriter`] tries first for the rows of `path` until the run completes,
+/// `<path>.partial` (when it is taken, [`create_partial`] takes another).
+fn partial_path(path: &Path) -> PathBuf {
     let mut name = path.as_os_str().to_owned();
     name.push(".partial");
     PathBuf::from(name)
+}
+
+/// `<path>.<pid>-<n>.partial`.
+fn numbered_partial(path: &Path, n: u32) -> PathBuf {
+    let mut name = path.as_os_str().to_owned();
+    name.push(format!(".{}-{n}.partial", std::process::id()));
+    PathBuf::from(name)
+}
+
+/// Create, new (`O_EXCL`: never an existing file, never through a link), the file that keeps
+/// the rows of `path` until the run completes: `<path>.partial` when that name is free, else
+/// the first free `<path>.<pid>-<n>.partial`. No other run, and no other writer of this one,
+/// can have the same file. An error names the first name tried.
+fn create_partial(path: &Path) -> std::io::Result<(PathBuf, File)> {
+    let first = partial_path(path);
+    let candidates =
+        std::iter::once(first.clone()).chain((1..=1000).map(|n| numbered_partial(path, n)));
+    for name in candidates {
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .mode(0o644)
+            .open(&name)
+        {
+            Ok(file) => return Ok((name, file)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::new(
+        std::io::ErrorKind::AlreadyExists,
+        format!(
+            "{} and 1000 numbered names beside it are taken",
+            first.display()
+        ),
+    ))
+}
+
+/// Open the device or pipe `path` for writing in place without waiting: a named pipe with no
+/// reader is refused at once (a blocking open would wait for one, deaf to signals).
+fn open_direct(path: &Path) -> Result<File, Error> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .custom_flags(libc::O_NONBLOCK)
+        .open(path)
+        .map_err(|e| {
+            Error::Output(if e.raw_os_error() == Some(libc::ENXIO) {
+                format!(
+                    "{}: a named pipe that nothing reads; refused (start its reader first)",
+                    path.display()
+                )
+            } else {
+                format!("{}: {e}", path.display())
+            })
+        })
 }
 
 impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
@@ -417,11 +527,13 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
             .take()
             .ok_or_else(|| Error::Output(format!("{}: started twice", self.path.display())))?;
         let file = if self.direct {
-            std::fs::OpenOptions::new().write(true).open(&self.partial)
+            open_direct(&self.partial)?
         } else {
-            File::create(&self.partial)
-        }
-        .map_err(|e| self.io(e))?;
+            let (name, file) = create_partial(&self.path).map_err(|e| self.io(e))?;
+            self.partial = name;
+            self.holds = true;
+            file
+        };
         let mut buf = Vec::with_capacity(BUFFER + 4096);
         format.header(run, &mut buf);
         let sink = Sink {
@@ -489,7 +601,9 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
         let Some(file) = sink.file else {
             if self.rows == 0 && !self.direct {
                 // A failed write left no row: no file either.
-                let _ = std::fs::remove_file(&self.partial);
+                if std::fs::remove_file(&self.partial).is_ok() {
+                    self.holds = false;
+                }
             }
             return Err(
                 failure.unwrap_or_else(|| handed.err().unwrap_or(Error::Output(String::new())))
@@ -508,9 +622,12 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
         drop(file);
         if *end != End::Completed && self.rows == 0 {
             // Nothing to keep: the run stopped before its first communication point.
-            return std::fs::remove_file(&self.partial).map_err(|e| self.io(e));
+            std::fs::remove_file(&self.partial).map_err(|e| self.io(e))?;
+            self.holds = false;
+            return Ok(());
         }
         if *end == End::Completed {
+            // Our own file (created new), so the rows named `path` are this run's, whole.
             std::fs::rename(&self.partial, &self.path).map_err(|e| {
                 Error::Output(format!(
                     "cannot rename {} to {}: {e}",
@@ -518,6 +635,7 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
                     self.path.display()
                 ))
             })?;
+            self.holds = false;
         }
         Ok(())
     }
@@ -528,7 +646,8 @@ impl<F: Format + Send + 'static> Observer for ResultWriter<F> {
 pub struct Record {
     /// `component.variable` patterns, `*` matching any run of characters (`grid.pcc.*`,
     /// `*.p`); empty records every output; `None` the system's default set
-    /// ([`RunInfo::record`]), whose patterns may match nothing in a given system.
+    /// ([`RunInfo::record`]). A pattern, given or the system's, that matches no output is an
+    /// error.
     pub patterns: Option<Vec<String>>,
     /// Record at this interval, s: a whole multiple of the communication step (`None`: each
     /// communication point).
@@ -640,9 +759,9 @@ impl<O: Observer> Select<O> {
 impl<O: Observer> Observer for Select<O> {
     fn start(&mut self, run: &RunInfo) -> Result<(), Error> {
         self.every = self.record.every(run.step)?;
-        let (p, strict) = match &self.record.patterns {
-            Some(p) => (p.as_slice(), true),
-            None => (run.record, false),
+        let (p, whose) = match &self.record.patterns {
+            Some(p) => (p.as_slice(), ""),
+            None => (run.record, " of the system's record annotation"),
         };
         self.keep = (0..run.columns.len())
             .filter(|&k| k == 0 || p.is_empty() || p.iter().any(|p| matches(p, &run.columns[k])))
@@ -650,9 +769,11 @@ impl<O: Observer> Observer for Select<O> {
         let unmatched = p
             .iter()
             .find(|p| !run.columns[1..].iter().any(|c| matches(p, c)));
-        if let Some(none) = unmatched.filter(|_| strict) {
+        // A pattern of the system's own is held to what `--record` is: one that matches
+        // nothing is a mistake in the system (a renamed component or variable), not silence.
+        if let Some(none) = unmatched {
             return Err(Error::Output(format!(
-                "record pattern '{none}' matches no output of {} (outputs are named component.variable, e.g. {})",
+                "record pattern '{none}'{whose} matches no output of {} (outputs are named component.variable, e.g. {})",
                 run.system,
                 run.columns.get(1).map_or("", String::as_str)
             )));
@@ -748,8 +869,22 @@ mod tests {
             .unwrap_err();
         assert!(e.to_string().contains("not a whole multiple"), "{e}");
         assert!(Record::parse("all, *.p").is_all());
-        // The system's default set may name what a system lacks.
+        // The system's default set is held to the same rule, in the same words, saying whose
+        // the pattern is (it was dropped silently).
         let default = ["*.p".to_string(), "operator.*".to_string()];
+        let mut s = Select::new(crate::master::Recorder::default(), Record::system_default());
+        let e = s
+            .start(&RunInfo {
+                record: &default,
+                ..info(&columns)
+            })
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("record pattern 'operator.*' of the system's record annotation matches no output of s"),
+            "{e}"
+        );
+        let default = ["*.p".to_string()];
         let mut s = Select::new(crate::master::Recorder::default(), Record::system_default());
         s.start(&RunInfo {
             record: &default,
@@ -791,7 +926,12 @@ mod tests {
         for k in 0..n {
             w.sample(&[k as f64, -(k as f64)]).unwrap();
         }
-        let partial = partial_path(&path);
+        let partial = w.kept().expect("the run's own .partial file").to_path_buf();
+        assert_eq!(
+            partial,
+            partial_path(&path),
+            "the name is free: the plain one"
+        );
         // The writer thread writes as the chunks come: wait for rows on disk.
         let since = std::time::Instant::now();
         let (cols, rows) = loop {
@@ -854,5 +994,126 @@ mod tests {
         let kind = std::fs::symlink_metadata(&fifo).unwrap().file_type();
         assert!(kind.is_fifo(), "the pipe was replaced: {kind:?}");
         assert!(!partial_path(&fifo).exists());
+    }
+
+    #[test]
+    fn a_named_pipe_that_nothing_reads_is_refused_at_once() {
+        let dir = crate::tmp::TempDir::new("csv-fifo-no-reader").unwrap();
+        let fifo = dir.path().join("out.csv");
+        let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: a valid NUL-terminated path.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let columns = ["time".to_string(), "a.y".to_string()];
+        let started = std::time::Instant::now();
+        let mut w = CsvWriter::new(&fifo);
+        let e = w.start(&info(&columns)).unwrap_err().to_string();
+        assert!(started.elapsed() < std::time::Duration::from_secs(5));
+        assert!(
+            e.contains(&fifo.display().to_string()) && e.contains("named pipe that nothing reads"),
+            "{e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+        w.finish(&End::Failed {
+            at: 0.0,
+            error: e.clone(),
+        })
+        .unwrap();
+        assert_eq!(w.kept(), None, "no file holds rows");
+    }
+
+    /// The rows of a CSV file as text lines after the header, each checked whole.
+    fn csv_times(path: &Path) -> Vec<f64> {
+        let text = std::fs::read_to_string(path).unwrap();
+        assert!(text.ends_with('\n'), "{} ends in a cut row", path.display());
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("time,a.y"));
+        lines
+            .map(|l| {
+                let (t, y) = l.split_once(',').expect("two fields");
+                let (t, y): (f64, f64) = (t.parse().unwrap(), y.parse().unwrap());
+                assert_eq!(y, 2.0 * t, "{l}");
+                t
+            })
+            .collect()
+    }
+
+    /// Two runs writing one `--out` (here two writers of one process, as two processes do):
+    /// each keeps its rows in a file of its own, the completed one renames its own file, and
+    /// the interrupted one names a file that exists and holds its rows, whole.
+    #[test]
+    fn two_writers_of_one_path_never_share_a_file() {
+        let dir = crate::tmp::TempDir::new("csv-two-runs").unwrap();
+        let path = dir.path().join("out.csv");
+        let columns = ["time".to_string(), "a.y".to_string()];
+        let (n_a, n_b) = (3 * CHUNK / 2 + 11, CHUNK + 5);
+        let mut a = CsvWriter::new(&path);
+        let mut b = CsvWriter::new(&path);
+        a.start(&info(&columns)).unwrap();
+        b.start(&info(&columns)).unwrap();
+        let (pa, pb) = (
+            a.kept().unwrap().to_path_buf(),
+            b.kept().unwrap().to_path_buf(),
+        );
+        assert_ne!(pa, pb);
+        assert!(
+            pb.to_str().unwrap().ends_with(".partial"),
+            "{}",
+            pb.display()
+        );
+        for k in 0..n_a.max(n_b) {
+            // Run B's times are negative: a row of one run in the other's file would show.
+            if k < n_a {
+                a.sample(&[k as f64, 2.0 * k as f64]).unwrap();
+            }
+            if k < n_b {
+                b.sample(&[-(k as f64), -2.0 * k as f64]).unwrap();
+            }
+        }
+        a.finish(&End::Completed).unwrap();
+        b.finish(&End::Interrupted { signal: 2, at: 1.0 }).unwrap();
+        assert_eq!(a.kept(), None, "renamed to the final name");
+        assert!(!pa.exists());
+        let times = csv_times(&path);
+        assert_eq!(times, (0..n_a).map(|k| k as f64).collect::<Vec<_>>());
+        assert_eq!(b.kept(), Some(pb.as_path()));
+        let times = csv_times(&pb);
+        assert_eq!(times, (0..n_b).map(|k| -(k as f64)).collect::<Vec<_>>());
+
+        // Both complete: the file is one run's rows, whole, and no .partial file is left.
+        std::fs::remove_file(&pb).unwrap();
+        let mut a = CsvWriter::new(&path);
+        let mut b = CsvWriter::new(&path);
+        a.start(&info(&columns)).unwrap();
+        b.start(&info(&columns)).unwrap();
+        for k in 0..n_b {
+            a.sample(&[k as f64, 2.0 * k as f64]).unwrap();
+            b.sample(&[-(k as f64), -2.0 * k as f64]).unwrap();
+        }
+        b.finish(&End::Completed).unwrap();
+        a.finish(&End::Completed).unwrap();
+        let times = csv_times(&path);
+        assert_eq!(times, (0..n_b).map(|k| k as f64).collect::<Vec<_>>());
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, ["out.csv"]);
+    }
+
+    #[test]
+    fn a_run_that_keeps_no_row_names_no_file() {
+        let dir = crate::tmp::TempDir::new("csv-no-row").unwrap();
+        let path = dir.path().join("out.csv");
+        let columns = ["time".to_string(), "a.y".to_string()];
+        let mut w = CsvWriter::new(&path);
+        w.start(&info(&columns)).unwrap();
+        assert!(w.kept().is_some_and(Path::exists));
+        w.finish(&End::Interrupted {
+            signal: 15,
+            at: 0.0,
+        })
+        .unwrap();
+        assert_eq!(w.kept(), None);
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
     }
 }

@@ -4,24 +4,27 @@ use super::reader::parse_ssd_labelled;
 use super::{Component, Error, System, SSD_FILE};
 use crate::tmp::TempDir;
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
 /// A read system: the structure and the directory its files are in (an unpacked .ssp in a
-/// temporary directory that is removed on drop, or the directory given).
+/// temporary directory, removed when the last package sharing it drops, or the directory given).
 #[derive(Debug)]
 pub struct Package {
     pub system: System,
     pub dir: PathBuf,
-    pub(super) _temp: Option<TempDir>,
+    /// The unpacked .ssp `dir` is, shared by the packages of [`Package::with_system`].
+    pub(super) _temp: Option<Arc<TempDir>>,
 }
 
 impl Package {
     /// The same files with another structure (e.g. other start values), for runs that vary a
-    /// system; its files stay valid as long as `self` lives.
+    /// system. It shares the unpacked files with `self`: they stay until both have dropped,
+    /// whichever drops first.
     pub fn with_system(&self, system: System) -> Package {
         Package {
             system,
             dir: self.dir.clone(),
-            _temp: None,
+            _temp: self._temp.clone(),
         }
     }
 
@@ -64,7 +67,9 @@ pub fn read(path: &Path) -> Result<Package, Error> {
             _temp: None,
         });
     }
-    let file = std::fs::File::open(path).map_err(|e| at(Error(format!("cannot open: {e}"))))?;
+    // Not a blocking open: a named pipe is refused at once (crate::archive::open_regular).
+    let file =
+        crate::archive::open_regular(path).map_err(|e| at(Error(format!("cannot open: {e}"))))?;
     let mut archive = zip::ZipArchive::new(file)
         .map_err(|e| at(Error(format!("not an SSP archive (zip): {e}"))))?;
     if archive.index_for_name(SSD_FILE).is_none() {
@@ -80,7 +85,7 @@ pub fn read(path: &Path) -> Result<Package, Error> {
     Ok(Package {
         system,
         dir: temp.path().to_path_buf(),
-        _temp: Some(temp),
+        _temp: Some(Arc::new(temp)),
     })
 }
 
@@ -94,6 +99,33 @@ fn read_ssd_file(path: &Path, dir: &Path, label: &str) -> Result<System, Error> 
 mod tests {
     use super::*;
     use crate::ssp::fixtures::*;
+
+    /// A package made by `with_system` kept a directory that was removed when the original
+    /// dropped; now they share it, and it goes with the last of them.
+    #[test]
+    fn a_package_with_another_system_keeps_the_unpacked_files() {
+        let t = temp();
+        let ssp = t.path().join("shared.ssp");
+        let mut zip = zip::ZipWriter::new(std::fs::File::create(&ssp).unwrap());
+        let options = zip::write::SimpleFileOptions::default();
+        zip.start_file(SSD_FILE, options).unwrap();
+        let ssd = sample().to_ssd();
+        std::io::Write::write_all(&mut zip, ssd.as_bytes()).unwrap();
+        zip.start_file("resources/grid.fmu", options).unwrap();
+        std::io::Write::write_all(&mut zip, b"grid bytes").unwrap();
+        zip.finish().unwrap();
+        let original = read(&ssp).unwrap();
+        let mut system = original.system.clone();
+        system.start_time = 1.5;
+        let varied = original.with_system(system);
+        let grid = varied.source_path(&varied.system.components[0]);
+        drop(original);
+        assert_eq!(std::fs::read(&grid).unwrap(), b"grid bytes");
+        assert_eq!(varied.system.start_time, 1.5);
+        let dir = varied.dir.clone();
+        drop(varied);
+        assert!(!dir.exists(), "removed with the last package");
+    }
 
     #[test]
     fn not_an_ssp() {

@@ -105,7 +105,8 @@ pub struct Experiment {
 /// case-study figures and tables plot and measure (PCC and POC quantities, the units' powers,
 /// currents, dc links and set points, the machines' powers, the operator's gains and desired
 /// response, the units' own frequencies for their coherency with the PCC). A pattern may match
-/// nothing in a given system.
+/// nothing in a given system: the system is written with those that match (the master refuses
+/// a record pattern that matches no output).
 pub const RECORD: [&str; 18] = [
     "grid.pcc*",
     "grid.energized",

@@ -48,6 +48,10 @@ pub(super) fn system(
             });
         }
     }
+    let record = match &sc.experiment.record {
+        Some(r) => r.clone(),
+        None => default_record(&components),
+    };
     Ok(ssp::System {
         name: name.into(),
         description: Some(sc.description.clone()),
@@ -56,11 +60,27 @@ pub(super) fn system(
         start_time: sc.experiment.start,
         stop_time: Some(sc.experiment.stop),
         step_size: Some(sc.experiment.step),
-        record: match &sc.experiment.record {
-            Some(r) => r.clone(),
-            None => RECORD.iter().map(|p| p.to_string()).collect(),
-        },
+        record,
     })
+}
+
+/// Of [`RECORD`], the patterns that match an output of `components` (the master refuses a
+/// record pattern that matches nothing; the default list names what any scenario may have).
+fn default_record(components: &[ssp::Component]) -> Vec<String> {
+    let outputs: Vec<String> = components
+        .iter()
+        .flat_map(|c| {
+            c.connectors
+                .iter()
+                .filter(|k| k.kind == ssp::Kind::Output && k.ty != ssp::Type::String)
+                .map(move |k| format!("{}.{}", c.name, k.name))
+        })
+        .collect();
+    RECORD
+        .iter()
+        .filter(|p| outputs.iter().any(|o| dvpp_cosim::master::matches(p, o)))
+        .map(|p| p.to_string())
+        .collect()
 }
 
 /// A component of the system: every output as a connector, the parameters among `start` bound.

@@ -552,9 +552,23 @@ fn python_env() -> Result<PathBuf> {
 
 fn test() -> Result {
     let started = std::time::Instant::now();
+    // The lints first (formatting costs a second): clippy.toml forbids the platform's
+    // transcendental functions (docs/architecture.md, "Determinism"), and the workspace's
+    // `unsafe` lints hold only where clippy runs.
+    components(&["rustfmt", "clippy"])?;
+    run(cargo().args(["fmt", "--all", "--check"]))?;
     let win64_required = win64::install_for_tests();
     // Before anything builds the workspace: dvpp-design links OpenBLAS and libgfortran.
     hinf::install();
+    run(cargo().args([
+        "clippy",
+        "--workspace",
+        "--all-targets",
+        "--quiet",
+        "--",
+        "-D",
+        "warnings",
+    ]))?;
     bundle(&[])?;
     let dist = root().join("dist").join("default");
     let cosim = cosim_binary()?;
@@ -605,6 +619,23 @@ fn test() -> Result {
         "cargo xtask test: all passed in {:.0} s",
         started.elapsed().as_secs_f64()
     );
+    Ok(())
+}
+
+/// Install the rustup components `names` where `cargo <name>` does not run (a toolchain
+/// installed with rustup's minimal profile has neither rustfmt nor clippy).
+fn components(names: &[&str]) -> Result {
+    for name in names {
+        let sub = if *name == "rustfmt" { "fmt" } else { name };
+        let there = cargo()
+            .args([sub, "--version"])
+            .output()
+            .is_ok_and(|o| o.status.success());
+        if !there {
+            println!("test setup: rustup component add {name}");
+            run(Command::new("rustup").args(["component", "add", name]))?;
+        }
+    }
     Ok(())
 }
 

@@ -20,6 +20,7 @@ impl Model for Fragile {
     const IDENTIFIER: &'static str = "fragile";
     const NAME: &'static str = "fragile";
     const DESCRIPTION: &'static str = "panics when x > 1, fails when x < -1";
+    const MAX_STEP: f64 = 1.0;
 
     fn declare(_: &(), _: Option<&std::path::Path>, v: &mut Variables) -> Result<Self, String> {
         Ok(Fragile {

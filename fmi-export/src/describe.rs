@@ -1,5 +1,6 @@
 //! From a model's declaration to its modelDescription.xml, and the resource file that shapes both.
 
+use crate::instance::shown;
 use crate::log::CATEGORIES;
 use crate::model::{Declared, Model, Value, Variables};
 use model_description as md;
@@ -138,7 +139,10 @@ fn start_override(d: &mut Declared, v: &toml::Value) -> Result<(), String> {
         let (lo, hi) = d.spec.accepted_range();
         if !(lo..=hi).contains(&x) {
             return Err(format!(
-                "[start] '{name}' = {x} is outside its range [{lo:e}, {hi:e}]"
+                "[start] '{name}' = {} is outside its range [{}, {}]",
+                shown(x),
+                shown(lo),
+                shown(hi)
             ));
         }
     }

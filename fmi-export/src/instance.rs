@@ -543,7 +543,7 @@ pub struct Snapshot<M> {
 }
 
 /// A value as log lines show it: plain, or in exponent form when very large or small.
-fn shown(x: f64) -> String {
+pub(crate) fn shown(x: f64) -> String {
     if x == 0.0 || (1e-6..1e9).contains(&x.abs()) {
         format!("{x}")
     } else {

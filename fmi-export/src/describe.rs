@@ -1,5 +1,6 @@
 //! From a model's declaration to its modelDescription.xml, and the resource file that shapes both.
 
+use crate::instance::shown;
 use crate::log::CATEGORIES;
 use crate::model::{Declared, Model, Value, Variables};
 use model_description as md;
@@ -60,13 +61,49 @@ impl<C: serde::de::DeserializeOwned + Default> Config<C> {
         toml::from_str(text).map_err(|e| format!("{CONFIG_FILE}: {e}"))
     }
 
-    /// Read `dir/config.toml`; a missing file is an error that names the path.
+    /// Read `dir/config.toml`; a missing file, or one beyond [`MAX_RESOURCE_BYTES`], is an
+    /// error that names the path.
     pub fn load(dir: &Path) -> Result<Self, String> {
-        let path = dir.join(CONFIG_FILE);
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| format!("missing resource file {}: {e}", path.display()))?;
+        let text = read_resource(&dir.join(CONFIG_FILE))?;
         Self::from_toml(&text)
     }
+}
+
+/// Largest resource file an FMU reads, bytes (16 MiB). The largest file the models read, a grid
+/// case, is a few kB (a thousand-bus case would still be under 1 MiB), and the file is read
+/// whole into memory at `fmi2Instantiate`: the limit keeps a wrong or hostile file from taking
+/// the host's memory (and minutes of parsing) before it is refused.
+pub const MAX_RESOURCE_BYTES: u64 = 16 << 20;
+
+/// The text of the resource file `path`, read up to [`MAX_RESOURCE_BYTES`]: every FMU reads its
+/// resources through this. A missing, unreadable, non-UTF-8 or larger file is an error naming
+/// the path (and the limit).
+pub fn read_resource(path: &Path) -> Result<String, String> {
+    use std::io::Read;
+    let too_large = || {
+        format!(
+            "resource file {} is larger than the limit of {} MiB ({MAX_RESOURCE_BYTES} bytes) \
+             an FMU reads; refused",
+            path.display(),
+            MAX_RESOURCE_BYTES >> 20
+        )
+    };
+    let file = std::fs::File::open(path)
+        .map_err(|e| format!("missing resource file {}: {e}", path.display()))?;
+    // The length on disk refuses a large file at once; reading at most one byte beyond the
+    // limit also catches a file that grows meanwhile or reports no length (a pipe, a device).
+    if file.metadata().is_ok_and(|m| m.len() > MAX_RESOURCE_BYTES) {
+        return Err(too_large());
+    }
+    let mut bytes = Vec::new();
+    file.take(MAX_RESOURCE_BYTES + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| format!("cannot read resource file {}: {e}", path.display()))?;
+    if bytes.len() as u64 > MAX_RESOURCE_BYTES {
+        return Err(too_large());
+    }
+    String::from_utf8(bytes)
+        .map_err(|e| format!("resource file {} is not UTF-8: {e}", path.display()))
 }
 
 fn start_override(d: &mut Declared, v: &toml::Value) -> Result<(), String> {
@@ -99,14 +136,13 @@ fn start_override(d: &mut Declared, v: &toml::Value) -> Result<(), String> {
         _ => None,
     };
     if let Some(x) = number {
-        if !x.is_finite()
-            || d.spec.min.is_some_and(|lo| x < lo)
-            || d.spec.max.is_some_and(|hi| x > hi)
-        {
+        let (lo, hi) = d.spec.accepted_range();
+        if !(lo..=hi).contains(&x) {
             return Err(format!(
-                "[start] '{name}' = {x} is outside its range [{}, {}]",
-                d.spec.min.unwrap_or(f64::NEG_INFINITY),
-                d.spec.max.unwrap_or(f64::INFINITY)
+                "[start] '{name}' = {} is outside its range [{}, {}]",
+                shown(x),
+                shown(lo),
+                shown(hi)
             ));
         }
     }
@@ -119,6 +155,14 @@ pub fn declare<M: Model>(
     config: &Config<M::Config>,
     resources: Option<&Path>,
 ) -> Result<(M, Variables), String> {
+    let step = config.experiment.step;
+    if !(step > 0.0 && step <= M::MAX_STEP) {
+        return Err(format!(
+            "[experiment] step = {step} s is outside (0, {}] s, the communication steps {} accepts",
+            M::MAX_STEP,
+            M::IDENTIFIER
+        ));
+    }
     let mut vars = Variables::default();
     let model = M::declare(&config.model, resources, &mut vars)?;
     for (name, v) in &config.start {

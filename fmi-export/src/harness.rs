@@ -25,7 +25,7 @@
 use crate::api;
 use crate::describe::{describe, Config};
 use crate::ffi::{fmi2StatusKind, fmi2Type, FMI2_COSIMULATION};
-use crate::instance::{Call, Instance, Phase, Snapshot};
+use crate::instance::{Call, Instance, Phase, Snapshot, NOT_FINITE};
 use crate::log::{LogRecord, LogSink, Logger};
 use crate::model::{Model, Value};
 use crate::Status;
@@ -36,6 +36,10 @@ use std::sync::{Arc, Mutex};
 
 /// The instance name the harness instantiates with unless told otherwise.
 pub const INSTANCE_NAME: &str = "harness";
+
+/// The values [`Harness::hostile_sweep`] sets every Real parameter and input to (besides the
+/// ends of its accepted range): what a campaign of hostile inputs tries first.
+pub const HOSTILE_VALUES: [f64; 4] = [1e308, -1e308, f64::NAN, f64::INFINITY];
 
 /// A saved FMU state (`fmi2FMUstate`); freeing it is dropping it.
 pub type FmuState<M> = Snapshot<M>;
@@ -498,6 +502,96 @@ impl<M: Model> Harness<M> {
                 self.log()
             );
         }
+    }
+
+    // --- Hostile inputs ----------------------------------------------------------------------
+
+    /// Every Real parameter and input of the instances `make` builds, set to each of
+    /// [`HOSTILE_VALUES`] and to both ends of its accepted range: once before initialization
+    /// (then initialized and stepped once over the default experiment's step), and, for inputs
+    /// and tunable parameters, once between steps (then stepped once). Each call must either
+    /// succeed (the step with finite values everywhere, which the layer checks) or return
+    /// `fmi2Error` with a message that names the variable; never `fmi2Fatal` (a contained
+    /// panic) or an error that names something else. At the ends of its range (legal values)
+    /// the model may also fail naming what failed, but no value may go non-finite. Returns the
+    /// violations, one line each.
+    pub fn hostile_sweep(make: impl Fn() -> Self) -> Vec<String> {
+        let probe = make();
+        let step = probe.inst.config().experiment.step;
+        let mut found = Vec::new();
+        for (name, vr, later, (lo, hi)) in probe.inst.settable_reals() {
+            let mut values = HOSTILE_VALUES.to_vec();
+            values.extend([lo, hi]);
+            for x in values {
+                for between_steps in [false, true] {
+                    if between_steps && !later {
+                        continue;
+                    }
+                    let mut h = make();
+                    if let Err(e) = h.hostile_run(&name, vr, x, between_steps, step) {
+                        let when = if between_steps {
+                            "between steps"
+                        } else {
+                            "before init"
+                        };
+                        found.push(format!("'{name}' = {x:e} ({when}): {e}"));
+                    }
+                }
+            }
+        }
+        found
+    }
+
+    /// One run of [`Self::hostile_sweep`]: `Err` says what went wrong.
+    fn hostile_run(
+        &mut self,
+        name: &str,
+        vr: u32,
+        x: f64,
+        between_steps: bool,
+        step: f64,
+    ) -> Result<(), String> {
+        let start = self.inst.config().experiment.start;
+        let calls = if between_steps {
+            ["setup", "enter", "exit", "set", "step"]
+        } else {
+            ["set", "setup", "enter", "exit", "step"]
+        };
+        for call in calls {
+            let (call, status) = match call {
+                "set" => ("fmi2SetReal", self.set_real(&[vr], &[x])),
+                "setup" => ("fmi2SetupExperiment", self.setup_experiment(start, None)),
+                "enter" => (
+                    "fmi2EnterInitializationMode",
+                    self.enter_initialization_mode(),
+                ),
+                "exit" => (
+                    "fmi2ExitInitializationMode",
+                    self.exit_initialization_mode(),
+                ),
+                _ => ("fmi2DoStep", self.do_step(self.time(), step)),
+            };
+            if status < Status::Error {
+                continue;
+            }
+            let last = self
+                .log()
+                .into_iter()
+                .rev()
+                .find(|r| r.status >= Status::Error)
+                .map(|r| r.message)
+                .unwrap_or_default();
+            // At an end of its range a value is legal, and the model may fail on what it does
+            // (a machine losing synchronism names the machine); only a value gone non-finite
+            // is a violation there.
+            let legal = !HOSTILE_VALUES.iter().any(|v| v.to_bits() == x.to_bits());
+            return match status {
+                Status::Error if last.contains(name) => Ok(()),
+                Status::Error if legal && !last.contains(NOT_FINITE) => Ok(()),
+                _ => Err(format!("{call} returned {status:?}: {last}")),
+            };
+        }
+        Ok(())
     }
 
     // --- Inspection (no FMI call) ----------------------------------------------------------

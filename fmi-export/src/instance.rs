@@ -2,7 +2,7 @@
 
 use crate::describe::{declare, description_of, Config};
 use crate::log::Logger;
-use crate::model::{Context, Model, Store, Value, Variables};
+use crate::model::{accepted_range, Context, Model, Store, Value, Variables};
 use crate::Status;
 use model_description::{fnv1a_128, BaseType, Causality, Variability};
 use serde::{Deserialize, Serialize};
@@ -119,6 +119,9 @@ pub struct Instance<M: Model> {
 pub(crate) fn model_tag<M: Model>() -> u64 {
     fnv1a_128(M::IDENTIFIER.as_bytes()) as u64
 }
+
+/// How the error of a step that left a value non-finite ends.
+pub const NOT_FINITE: &str = "the model cannot continue";
 
 /// Header of serialized FMU states.
 const MAGIC: &[u8; 8] = b"DVPPFMU\x02";
@@ -256,6 +259,27 @@ impl<M: Model> Instance<M> {
         }
     }
 
+    /// Every Real variable `fmi2SetReal` may set before initialization: name, value reference,
+    /// whether it may also be set between steps (an input or a tunable parameter), and the
+    /// values it accepts.
+    pub fn settable_reals(&self) -> Vec<(String, u32, bool, (f64, f64))> {
+        let settable = |m: &Meta| match (m.causality, m.variability) {
+            (Causality::Input, _) | (Causality::Parameter, Variability::Tunable) => Some(true),
+            (Causality::Parameter, _) => Some(false),
+            _ => None,
+        };
+        self.meta[BaseType::Real as usize]
+            .iter()
+            .enumerate()
+            .filter_map(|(vr, m)| {
+                settable(m).map(|later| {
+                    let range = accepted_range(m.min, m.max);
+                    (m.name.clone(), vr as u32, later, range)
+                })
+            })
+            .collect()
+    }
+
     /// Check that every value reference exists for `t`; the first unknown one is reported.
     pub fn check_refs(&self, t: BaseType, vrs: &[u32]) -> Result<(), String> {
         match vrs
@@ -306,13 +330,14 @@ impl<M: Model> Instance<M> {
                     f64::MIN_POSITIVE
                 ));
             }
-            if m.min.is_some_and(|lo| x < lo) || m.max.is_some_and(|hi| x > hi) {
+            let (lo, hi) = accepted_range(m.min, m.max);
+            if !(lo..=hi).contains(&x) {
                 return Err(format!(
                     "value {} for '{}' is outside its range [{}, {}]; rejected",
                     shown(x),
                     m.name,
-                    m.min.unwrap_or(f64::NEG_INFINITY),
-                    m.max.unwrap_or(f64::INFINITY)
+                    shown(lo),
+                    shown(hi)
                 ));
             }
         }
@@ -373,7 +398,15 @@ impl<M: Model> Instance<M> {
         let now = self.core.time;
         if !(h > 0.0 && h.is_finite()) {
             return self.error(format!(
-                "fmi2DoStep: communication step size {h} must be positive and finite"
+                "fmi2DoStep: communicationStepSize = {h} s must be positive and finite; refused"
+            ));
+        }
+        if h > M::MAX_STEP {
+            return self.error(format!(
+                "fmi2DoStep: communicationStepSize = {h} s exceeds the longest step {} accepts, \
+                 {} s; refused (take several shorter steps)",
+                M::IDENTIFIER,
+                M::MAX_STEP
             ));
         }
         let tol = 1e-9 * now.abs().max(1.0);
@@ -409,7 +442,7 @@ impl<M: Model> Instance<M> {
             .find(|(_, x)| any_bad && !x.is_finite())
         {
             return self.error(format!(
-                "fmi2DoStep at t = {t}: '{}' became {x}; the model cannot continue",
+                "fmi2DoStep at t = {t}: '{}' became {x}; {NOT_FINITE}",
                 self.meta[0][vr].name
             ));
         }
@@ -510,8 +543,8 @@ pub struct Snapshot<M> {
 }
 
 /// A value as log lines show it: plain, or in exponent form when very large or small.
-fn shown(x: f64) -> String {
-    if x == 0.0 || (1e-6..1e15).contains(&x.abs()) {
+pub(crate) fn shown(x: f64) -> String {
+    if x == 0.0 || (1e-6..1e9).contains(&x.abs()) {
         format!("{x}")
     } else {
         format!("{x:e}")

@@ -16,10 +16,14 @@ pub mod uri;
 /// The FMI 2.0 C ABI the exported functions have (the [`fmi2`] crate, shared with the master).
 pub use fmi2 as ffi;
 
-pub use describe::{assert_golden, describe, describe_main, Config, Experiment, CONFIG_FILE};
+pub use describe::{
+    assert_golden, describe, describe_main, read_resource, Config, Experiment, CONFIG_FILE,
+    MAX_RESOURCE_BYTES,
+};
 pub use ffi::Status;
 pub use model::{
     Boolean, Context, Integer, Model, ModelError, Real, Spec, Store, Value, Variables,
+    MAX_MAGNITUDE,
 };
 pub use model_description;
 

@@ -20,6 +20,10 @@ pub trait Model: Clone + Send + Serialize + DeserializeOwned + 'static {
     const NAME: &'static str;
     /// `description`.
     const DESCRIPTION: &'static str;
+    /// Longest communication step `fmi2DoStep` accepts, s: generous against the steps the model
+    /// is designed for, short enough that one call returns promptly. A longer step is refused
+    /// with `fmi2Error` (state unchanged) instead of being integrated for minutes.
+    const MAX_STEP: f64;
 
     /// Declare every variable and return the model holding their handles. `resources` is the
     /// FMU's `resources/` directory (for data files the config names); `None` when describing
@@ -69,6 +73,19 @@ pub struct Integer(pub u32);
 /// Handle of a Boolean variable.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct Boolean(pub u32);
+
+/// Largest magnitude a Real or Integer parameter or input accepts where its declaration states
+/// no bound: no physical quantity of these models (pu, s, Hz, MVA, rad) comes near it, and
+/// products of a few such values stay far from overflowing to infinity (about 1e308), so
+/// `1e308` is refused by name at the setter instead of turning into inf/NaN, or a panic, deep
+/// inside the model.
+pub const MAX_MAGNITUDE: f64 = 1e12;
+
+/// The accepted range for declared bounds `min`, `max`: [`MAX_MAGNITUDE`] stands in for a
+/// missing one.
+pub fn accepted_range(min: Option<f64>, max: Option<f64>) -> (f64, f64) {
+    (min.unwrap_or(-MAX_MAGNITUDE), max.unwrap_or(MAX_MAGNITUDE))
+}
 
 /// A start value, which also fixes the variable's base type.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -173,10 +190,22 @@ impl Spec {
         self
     }
 
-    /// Lower bound only.
+    /// Lower bound only (the upper one is [`MAX_MAGNITUDE`]).
     pub fn min(mut self, min: f64) -> Self {
         self.min = Some(min);
         self
+    }
+
+    /// Upper bound only (the lower one is -[`MAX_MAGNITUDE`]).
+    pub fn max(mut self, max: f64) -> Self {
+        self.max = Some(max);
+        self
+    }
+
+    /// The values `fmi2Set*` and `[start]` accept: the declared bounds, and ±[`MAX_MAGNITUDE`]
+    /// where none is declared.
+    pub fn accepted_range(&self) -> (f64, f64) {
+        accepted_range(self.min, self.max)
     }
 
     /// Names of the inputs this output depends on in initialization mode.

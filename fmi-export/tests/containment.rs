@@ -20,6 +20,7 @@ impl Model for Fragile {
     const IDENTIFIER: &'static str = "fragile";
     const NAME: &'static str = "fragile";
     const DESCRIPTION: &'static str = "panics when x > 1, fails when x < -1";
+    const MAX_STEP: f64 = 1.0;
 
     fn declare(_: &(), _: Option<&std::path::Path>, v: &mut Variables) -> Result<Self, String> {
         Ok(Fragile {
@@ -162,4 +163,20 @@ fn panics_are_contained_and_errors_escalate() {
         "{log:?}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_hostile_sweep_reports_a_contained_panic() {
+    use fmi_export::harness::Harness;
+    let found = Harness::hostile_sweep(Harness::<Fragile>::new);
+    // 1e12 (the end of its range) panics in the step, set before initialization and between
+    // steps; -1e12 fails with the model's own error (legal at a range end), ±1e308 and the
+    // non-finite values are refused by name at the setter.
+    assert_eq!(found.len(), 2, "{found:#?}");
+    assert!(
+        found
+            .iter()
+            .all(|f| f.starts_with("'x' = 1e12") && f.contains("fmi2DoStep returned Fatal")),
+        "{found:#?}"
+    );
 }

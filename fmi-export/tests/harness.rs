@@ -29,6 +29,7 @@ impl Model for Probe {
     const IDENTIFIER: &'static str = "probe";
     const NAME: &'static str = "probe";
     const DESCRIPTION: &'static str = "y = gain x; panics when x > 1, fails when x < -1";
+    const MAX_STEP: f64 = 1.0;
 
     fn declare(_: &(), _: Option<&std::path::Path>, v: &mut Variables) -> Result<Self, String> {
         Ok(Probe {

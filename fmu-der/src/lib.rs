@@ -181,6 +181,8 @@ impl Model for Der {
     const IDENTIFIER: &'static str = "dvpp_der";
     const NAME: &'static str = "DVPP DER matching controller";
     const DESCRIPTION: &'static str = "DVPP unit, grid-forming (df = -T_pf/m_p dp) or grid-following (dp = -m_p T_pf^-1 df), with ADPFs, dc side and rating limits";
+    /// Phasor steps are 1e-4 to 1e-2 s; 1 s (100 times the longest) keeps one call short.
+    const MAX_STEP: f64 = 1.0;
 
     fn declare(
         config: &DerConfig,

@@ -49,9 +49,8 @@ impl GridConfig {
                     format!("[model] case_file = \"{file}\" needs the FMU's resources directory")
                 })?;
                 let path = dir.join(rel);
-                let text = std::fs::read_to_string(&path).map_err(|e| {
-                    format!("case file {file}: cannot read {}: {e}", path.display())
-                })?;
+                let text = fmi_export::read_resource(&path)
+                    .map_err(|e| format!("case file {file}: {e}"))?;
                 Case::from_toml_str(&text).map_err(|e| format!("case file {file}: {e}"))?
             }
             (name, None) => {

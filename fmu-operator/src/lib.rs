@@ -549,6 +549,8 @@ impl Model for Operator {
     const NAME: &'static str = "DVPP operator";
     const DESCRIPTION: &'static str =
         "DVPP operator: online ADPF dc gains (sums exactly 1) and the desired aggregate response T_des";
+    /// Phasor steps are 1e-4 to 1e-2 s; 1 s (100 times the longest) keeps one call short.
+    const MAX_STEP: f64 = 1.0;
 
     fn declare(
         config: &OperatorConfig,

@@ -177,16 +177,22 @@ fn bad_values_are_rejected_and_change_nothing() {
 #[test]
 fn do_step_rejects_bad_step_sizes_and_communication_points() {
     let fmu = load("dvpp_grid");
-    let cases: [(&str, f64, f64, &str); 5] = [
+    let cases: [(&str, f64, f64, &str); 6] = [
         ("zero step", 0.0, 0.0, "positive and finite"),
         ("negative step", 0.0, -1e-3, "positive and finite"),
         ("NaN step", 0.0, f64::NAN, "positive and finite"),
         ("wrong communication point", 0.5, 1e-3, "does not match"),
-        ("beyond the stop time", 0.0, 2.0, "stop time"),
+        ("beyond the stop time", 0.0, 0.75, "stop time"),
+        (
+            "beyond the longest step",
+            0.0,
+            1e4,
+            "exceeds the longest step dvpp_grid accepts, 1 s",
+        ),
     ];
     for (what, t, h, message) in cases {
         let mut i = fmu.instantiate(what).unwrap();
-        assert_eq!(i.setup_experiment(0.0, Some(1.0)), Status::Ok);
+        assert_eq!(i.setup_experiment(0.0, Some(0.5)), Status::Ok);
         assert_eq!(i.enter_initialization_mode(), Status::Ok);
         assert_eq!(i.exit_initialization_mode(), Status::Ok);
         assert_eq!(i.do_step(t, h), Status::Error, "{what}");

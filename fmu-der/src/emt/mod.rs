@@ -135,6 +135,9 @@ impl Model for DerEmt {
     const IDENTIFIER: &'static str = "dvpp_der_emt";
     const NAME: &'static str = "DVPP DER matching controller, EMT level";
     const DESCRIPTION: &'static str = "DVPP unit at EMT level: the DVPP layer (T_des, ADPFs, dc gains) over cascaded capacitor-voltage and converter-current PI loops (option A) and the dc-voltage control, on instantaneous three-phase measurements";
+    /// EMT steps are 20 to 50 µs; 1 ms (20 times the longest) keeps one call short and the
+    /// held converter voltage meaningful.
+    const MAX_STEP: f64 = 1e-3;
 
     fn declare(
         config: &DerConfig,

@@ -507,7 +507,7 @@ impl Frame {
         let scale = |c: &[f64]| -> Vec<f64> {
             c.iter()
                 .enumerate()
-                .map(|(k, x)| x * omega_b.powi(k as i32))
+                .map(|(k, x)| x * dvpp_math::powi(omega_b, k as i32))
                 .collect()
         };
         let (mut num, den) = (scale(&num), scale(&den));

@@ -43,7 +43,7 @@ pub fn expm(m: &DMatrix<f64>) -> DMatrix<f64> {
     if norm1 > 0.5 {
         s = dvpp_math::log2(norm1 / 0.5).ceil() as i32;
     }
-    let x = m * 0.5f64.powi(s);
+    let x = m * dvpp_math::powi(0.5f64, s);
     const Q: usize = 6;
     let mut c = [0.0f64; Q + 1];
     c[0] = 1.0;

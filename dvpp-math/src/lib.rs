@@ -9,8 +9,10 @@
 //! tests check that no shipped binary imports one (docs/architecture.md, "Determinism").
 //!
 //! What is exact anyway and stays as it is: `+ - * /`, `sqrt`, `abs`, `floor`, `round`, `%`
-//! (IEEE 754 correctly rounded or exact everywhere), and `powi` (compiler-builtins'
-//! multiplication loop, built into the binary).
+//! (IEEE 754 correctly rounded or exact everywhere). `f64::powi` is not: on linux64 LLVM
+//! lowers it to compiler-builtins' multiplication loop, on win64 (an MSVCRT target) to a call of
+//! the runtime's `pow`, which rounds once where the loop rounds at every product. [`powi`] is
+//! the loop, written out.
 
 pub use libm::{
     acos, asin, atan, atan2, cbrt, cos, cosh, exp, exp2, expm1, fma, hypot, log, log10, log1p,
@@ -18,6 +20,27 @@ pub use libm::{
 };
 
 use nalgebra::Complex;
+
+/// `x^n` by squaring and multiplying (the loop of compiler-builtins' `__powidf2`), the same
+/// products in the same order on every platform; replaces `f64::powi`.
+pub fn powi(x: f64, n: i32) -> f64 {
+    let (mut base, mut e, mut r) = (x, n.unsigned_abs(), 1.0);
+    loop {
+        if e & 1 == 1 {
+            r *= base;
+        }
+        e >>= 1;
+        if e == 0 {
+            break;
+        }
+        base *= base;
+    }
+    if n < 0 {
+        1.0 / r
+    } else {
+        r
+    }
+}
 
 /// `|z|` without overflow (`hypot`); replaces `Complex::norm`.
 pub fn cabs(z: Complex<f64>) -> f64 {
@@ -72,6 +95,17 @@ mod tests {
         for (name, v, bits) in cases {
             assert_eq!(v.to_bits(), bits, "{name}: {v:e} = {:#018x}", v.to_bits());
         }
+    }
+
+    #[test]
+    fn powi_is_the_multiplication_loop() {
+        assert_eq!(powi(1.7, 0), 1.0);
+        assert_eq!(powi(1.7, 1), 1.7);
+        assert_eq!(powi(1.7, 2), 1.7 * 1.7);
+        assert_eq!(powi(1.7, 3), 1.7 * (1.7 * 1.7));
+        assert_eq!(powi(1.7, 5), 1.7 * ((1.7 * 1.7) * (1.7 * 1.7)));
+        assert_eq!(powi(2.0, -3), 0.125);
+        assert_eq!(powi(10.0, -300), 1.0 / powi(10.0, 300));
     }
 
     #[test]

@@ -194,7 +194,10 @@ impl DcSide {
     pub fn ac_budget(&self) -> (f64, f64) {
         let p = &self.params;
         let w = self.energy();
-        let (w_min, w_max) = (0.5 * p.c * p.v_min.powi(2), 0.5 * p.c * p.v_max.powi(2));
+        let (w_min, w_max) = (
+            0.5 * p.c * dvpp_math::powi(p.v_min, 2),
+            0.5 * p.c * dvpp_math::powi(p.v_max, 2),
+        );
         let net = self.p_src() - self.p_loss();
         let spent = self.reserve_spent;
         (
@@ -225,7 +228,10 @@ impl DcSide {
         let floor = if p.storage { -cap } else { 0.0 };
         let src = self.p_src();
         let (w, w_star) = (self.energy(), p.nominal_energy());
-        let (w_min, w_max) = (0.5 * p.c * p.v_min.powi(2), 0.5 * p.c * p.v_max.powi(2));
+        let (w_min, w_max) = (
+            0.5 * p.c * dvpp_math::powi(p.v_min, 2),
+            0.5 * p.c * dvpp_math::powi(p.v_max, 2),
+        );
         let spent = &mut self.reserve_spent;
         if !dc_limit_on {
             *spent = Reserve::default();

@@ -285,7 +285,7 @@ impl Der {
         // The dc budget at the terminal: less the R_f loss at the present current.
         let (r, _) = self.slot_impedance(s);
         let r_loss = if rt.channel.mode() == Mode::GridForming {
-            r * (p * p + q * q) / v.max(limits::V_FLOOR).powi(2)
+            r * (p * p + q * q) / dvpp_math::powi(v.max(limits::V_FLOOR), 2)
         } else {
             0.0
         };

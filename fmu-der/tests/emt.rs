@@ -363,7 +363,7 @@ fn dip_figures(r: &Dip, dq_inf: f64) -> DipFigures {
     let n = r.q.len();
     let (q0, tau) = (r.q[0], 0.01);
     let rms = |f: &dyn Fn(usize) -> f64| {
-        ((step..n).map(|k| f(k).powi(2)).sum::<f64>() / (n - step) as f64).sqrt()
+        ((step..n).map(|k| dvpp_math::powi(f(k), 2)).sum::<f64>() / (n - step) as f64).sqrt()
     };
     let model = |k: usize| q0 + dq_inf * (1.0 - dvpp_math::exp(-((k - step) as f64 * H) / tau));
     let peak = |r0: std::ops::Range<usize>| r0.map(|k| (r.p[k] - 0.3).abs()).fold(0.0, f64::max);
@@ -645,7 +645,7 @@ fn trace_figures(r: &Trace) -> (f64, f64, f64, f64) {
     let n = r.q.len();
     let rms = if n > from {
         ((from..n)
-            .map(|k| (r.q[k] - r.q_ref[k]).powi(2))
+            .map(|k| dvpp_math::powi(r.q[k] - r.q_ref[k], 2))
             .sum::<f64>()
             / (n - from) as f64)
             .sqrt()

@@ -99,8 +99,8 @@ fn an_availability_drop_shifts_the_unit_s_gain_to_the_others() {
     // Reactive gains follow the PQ headroom sqrt(S² - P²) of every unit (MVA, MW).
     let [s1, s2, s3] = h.get_many(["der[1].S_rated", "der[2].S_rated", "der[3].S_rated"]);
     let headroom = [
-        (s1 * s1 - 30.0f64.powi(2)).sqrt(),
-        (s2 * s2 - 15.0f64.powi(2)).sqrt(),
+        (s1 * s1 - dvpp_math::powi(30.0f64, 2)).sqrt(),
+        (s2 * s2 - dvpp_math::powi(15.0f64, 2)).sqrt(),
         s3,
     ];
     let total: f64 = headroom.iter().sum();

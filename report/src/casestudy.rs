@@ -312,7 +312,7 @@ pub fn adpf_magnitudes(lpf: &[LowPass], mu: &[f64], w: &[f64]) -> Vec<Vec<f64>> 
             // μ / (1 + jωτ)^d
             let (mut re, mut im) = (*m, 0.0);
             for _ in 0..l.order.max(1) {
-                let den = 1.0 + (wk * l.tau).powi(2);
+                let den = 1.0 + dvpp_math::powi(wk * l.tau, 2);
                 let (a, b) = (1.0 / den, -wk * l.tau / den);
                 (re, im) = (re * a - im * b, re * b + im * a);
             }

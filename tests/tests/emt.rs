@@ -107,7 +107,7 @@ fn nrmse(a: &[f64], b: &[f64]) -> f64 {
     let ms = a[..n]
         .iter()
         .zip(b)
-        .map(|(x, y)| (x - y).powi(2))
+        .map(|(x, y)| dvpp_math::powi(x - y, 2))
         .sum::<f64>()
         / n as f64;
     ms.sqrt() / peak

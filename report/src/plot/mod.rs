@@ -356,7 +356,7 @@ mod tests {
             .map(|i| dvpp_math::pow(10f64, -3.0 + i as f64 * 0.01))
             .collect();
         let mag = |f: f64, tau: f64| {
-            -10.0 * dvpp_math::log10(1.0 + (2.0 * std::f64::consts::PI * f * tau).powi(2))
+            -10.0 * dvpp_math::log10(1.0 + dvpp_math::powi(2.0 * std::f64::consts::PI * f * tau, 2))
         };
         let g1: Vec<f64> = f.iter().map(|&f| mag(f, 0.5)).collect();
         let g2: Vec<f64> = f.iter().map(|&f| mag(f, 0.5) + mag(f, 0.02)).collect();

@@ -468,7 +468,7 @@ mod tests {
     fn legend_avoids_data() {
         // Data in the upper right: the legend must go elsewhere.
         let x: Vec<f64> = (0..100).map(|i| i as f64).collect();
-        let y: Vec<f64> = x.iter().map(|v| (v / 99.0).powi(8)).collect();
+        let y: Vec<f64> = x.iter().map(|v| dvpp_math::powi(v / 99.0, 8)).collect();
         let p = Panel::new("t", "x", "y").series("steep", &x, &y, Style::Solid);
         let svg = Figure::new("").panel(p).to_svg();
         let legend = svg.split("fill-opacity=\"0.85\"").next().unwrap();

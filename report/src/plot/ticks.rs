@@ -82,7 +82,7 @@ fn nice_values(lo: f64, hi: f64, target: usize, max_count: usize) -> Vec<f64> {
     let mut best: Option<(f64, f64)> = None;
     for k in (k0 - 1)..=(k0 + 2) {
         for m in [1.0, 2.0, 5.0] {
-            let step = m * 10f64.powi(k);
+            let step = m * dvpp_math::powi(10f64, k);
             if !(step.is_finite() && step > 0.0) {
                 continue;
             }
@@ -160,11 +160,11 @@ fn format_sci(v: f64, step_exp: i32) -> String {
     }
     let mut e = dvpp_math::log10(v.abs()).floor() as i32;
     let decimals = (e - step_exp).clamp(0, 12) as usize;
-    let mut m = v / 10f64.powi(e);
+    let mut m = v / dvpp_math::powi(10f64, e);
     // Rounding may carry into the next decade (9.99 → 10.0).
     if format!("{:.decimals$}", m.abs()).starts_with("10") {
         e += 1;
-        m = v / 10f64.powi(e);
+        m = v / dvpp_math::powi(10f64, e);
     }
     let mut ms = format!("{m:.decimals$}");
     if ms.contains('.') {
@@ -282,7 +282,7 @@ fn log_ticks(lo: f64, hi: f64, max_count: usize) -> Ticks {
 }
 
 fn pow10(k: i32) -> f64 {
-    10f64.powi(k)
+    dvpp_math::powi(10f64, k)
 }
 
 /// `m × 10^k` for a log axis: plain (`0.01` … `1000`) when the whole axis is `plain`, otherwise

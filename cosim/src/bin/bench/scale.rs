@@ -190,8 +190,8 @@ fn fit(xs: &[f64], ys: &[f64]) -> (f64, f64, f64) {
     let n = xs.len() as f64;
     let (mx, my) = (xs.iter().sum::<f64>() / n, ys.iter().sum::<f64>() / n);
     let sxy: f64 = xs.iter().zip(ys).map(|(x, y)| (x - mx) * (y - my)).sum();
-    let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
-    let syy: f64 = ys.iter().map(|y| (y - my).powi(2)).sum();
+    let sxx: f64 = xs.iter().map(|x| dvpp_math::powi(x - mx, 2)).sum();
+    let syy: f64 = ys.iter().map(|y| dvpp_math::powi(y - my, 2)).sum();
     let b = sxy / sxx;
     let a = my - b * mx;
     (

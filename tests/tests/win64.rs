@@ -375,16 +375,16 @@ fn win64_binaries_under_wine_match_linux64() {
 }
 
 /// One unit of the replayed system: its component name, unpacked FMU, model description and
-/// recorded columns (index in the CSV, value reference).
+/// recorded columns (index in the CSV, the output as the replay names it: `VR`, `i:VR`, `b:VR`).
 struct Replayed {
     name: String,
     dir: PathBuf,
     md: ModelDescription,
-    columns: Vec<(usize, u32)>,
+    columns: Vec<(usize, String)>,
 }
 
-/// A replay's output: the time and the outputs at each `sample` (the values of the last read
-/// before it); checks the closing "done".
+/// A replay's output: the time and the outputs at each `sample` of the trace (as the master
+/// recorded them there); checks the closing "done".
 fn samples(cmd: &mut Command, what: &str, outputs: usize) -> Vec<(f64, Vec<f64>)> {
     let out = cmd
         .output()
@@ -397,21 +397,17 @@ fn samples(cmd: &mut Command, what: &str, outputs: usize) -> Vec<(f64, Vec<f64>)
         String::from_utf8_lossy(&out.stderr)
     );
     let bits = |h: &str| f64::from_bits(u64::from_str_radix(h, 16).expect("16 hex digits"));
-    let mut last: Option<Vec<f64>> = None;
-    let mut rows = Vec::new();
-    for line in stdout.lines().map(str::trim).take_while(|l| *l != "done") {
-        if let Some(t) = line.strip_prefix("sample ") {
-            let values = last
-                .clone()
-                .unwrap_or_else(|| panic!("{what}: a sample before any read"));
-            rows.push((bits(t), values));
-        } else {
-            let values: Vec<f64> = line.split_whitespace().map(bits).collect();
-            assert_eq!(values.len(), outputs, "{what}: {line:?}");
-            last = Some(values);
-        }
-    }
-    rows
+    stdout
+        .lines()
+        .map(str::trim)
+        .take_while(|l| *l != "done")
+        .map(|line| {
+            let mut values: Vec<f64> = line.split_whitespace().map(bits).collect();
+            assert_eq!(values.len(), 1 + outputs, "{what}: {line:?}");
+            let t = values.remove(0);
+            (t, values)
+        })
+        .collect()
 }
 
 /// Check that `rows` (a replay of `unit`) gives the recorded `csv` columns bit for bit;
@@ -519,11 +515,14 @@ fn case1_load_replayed_under_wine_matches_its_digest() {
             .md
             .variable(var)
             .unwrap_or_else(|| panic!("column {column}: no variable {var}"));
-        assert!(
-            matches!(v.kind, VariableKind::Real(_)),
-            "column {column}: the replay prints Real outputs only"
-        );
-        unit.columns.push((c, v.value_reference));
+        let prefix = match v.kind {
+            VariableKind::Real(_) => "",
+            VariableKind::Integer(_) | VariableKind::Enumeration(_) => "i:",
+            VariableKind::Boolean(_) => "b:",
+            _ => panic!("column {column}: neither Real, Integer nor Boolean"),
+        };
+        unit.columns
+            .push((c, format!("{prefix}{}", v.value_reference)));
     }
 
     // Each unit replayed from its trace by the native master on its .so and by the Windows one
@@ -534,7 +533,7 @@ fn case1_load_replayed_under_wine_matches_its_digest() {
         let id = unit.md.model_identifier().expect("co-simulation");
         let trace = traces.join(format!("{}.trace", unit.name));
         assert!(trace.is_file(), "{}: no trace", trace.display());
-        let outputs: Vec<String> = unit.columns.iter().map(|(_, vr)| vr.to_string()).collect();
+        let outputs: Vec<&str> = unit.columns.iter().map(|(_, o)| o.as_str()).collect();
         let outputs = if outputs.is_empty() {
             "-".to_owned()
         } else {

@@ -13,10 +13,11 @@
  *   makes the calls of TRACE (a file `cosim --trace DIR` wrote for one unit, format in cosim/src/fmu/trace.rs) in
  *   order against one instance of LIBRARY, instantiated with GUID (which must be the one the trace recorded) and
  *   RESOURCE_URI (the resources unpacked on this machine).
- *   OUTPUTS  comma-separated value references of Real outputs ("-" for none), each read by the trace's get_real
- *   Output: at every get_real of the trace (where the master read the outputs), one line with OUTPUTS as read there,
- *   16 hex digits each; at every "sample T" (where the master recorded a communication point with the values it had
- *   read last), the line "sample T"; "done" at the end.
+ *   OUTPUTS  comma-separated outputs ("-" for none): a value reference of a Real, or i:VR of an Integer, b:VR of a
+ *            Boolean; each must be among the references the trace's reads (get_real, ...) read
+ *   Output: at every "sample T" of the trace (where the master recorded a communication point with the outputs as it
+ *   read them last), one line: T, then OUTPUTS as read last, each as the 16 hex digits of the double the master
+ *   records (an Integer converted exactly, a Boolean 0 or 1); "done" at the end.
  *
  * Exit status 0 when every call returned fmi2OK or fmi2Warning; otherwise a one-line reason on stderr and 1 (a
  * trace that cannot be read: its path, the line number and why). */
@@ -416,6 +417,9 @@ static int replay(int argc, char **argv) {
     fmi2FMUstate state = NULL;
     fmi2ValueReference *out_vr;
     size_t n_out, j, k, n, *out_at;
+    char *out_type;  /* 'r', 'i' or 'b' */
+    double *out_value;
+    int *out_seen;
     const char *guid, *resources;
     char *cursor, *end, *line = NULL, *word;
     size_t cap = 0;
@@ -431,13 +435,21 @@ static int replay(int argc, char **argv) {
     n_out = count_fields(argv[6]);
     out_vr = calloc(n_out + 1, sizeof *out_vr);
     out_at = calloc(n_out + 1, sizeof *out_at);
-    if (!out_vr || !out_at)
+    out_type = calloc(n_out + 1, sizeof *out_type);
+    out_value = calloc(n_out + 1, sizeof *out_value);
+    out_seen = calloc(n_out + 1, sizeof *out_seen);
+    if (!out_vr || !out_at || !out_type || !out_value || !out_seen)
         fail("out of memory");
     cursor = argv[6];
     for (j = 0; j < n_out; j++) {
+        out_type[j] = 'r';
+        if ((cursor[0] == 'i' || cursor[0] == 'b') && cursor[1] == ':') {
+            out_type[j] = cursor[0];
+            cursor += 2;
+        }
         out_vr[j] = (fmi2ValueReference)strtoul(cursor, &end, 10);
         if (end == cursor || (*end != ',' && *end != '\0'))
-            fail("OUTPUTS must be vr,vr,... or -");
+            fail("OUTPUTS must be VR, i:VR or b:VR, comma-separated, or -");
         cursor = end + 1;
     }
     setvbuf(stdout, stdout_buffer, _IOFBF, sizeof stdout_buffer);
@@ -546,30 +558,30 @@ static int replay(int argc, char **argv) {
             n = parse_count(&cursor, &a);
             for (k = 0; k < n; k++)
                 a.vr[k] = (fmi2ValueReference)parse_int(&cursor, "no value reference", 0, 0xffffffffLL);
-            if (call[4] == 'r') {
+            if (call[4] == 'r')
                 check(get_real(c, a.vr, n, a.real), "fmi2GetReal");
-                /* Where each output is among the references read (the master reads the same ones each time). */
-                for (j = 0; j < n_out; j++) {
-                    if (out_at[j] < n && a.vr[out_at[j]] == out_vr[j])
-                        continue;
+            else if (call[4] == 'i')
+                check(get_integer(c, a.vr, n, a.integer), "fmi2GetInteger");
+            else if (call[4] == 'b')
+                check(get_boolean(c, a.vr, n, a.integer), "fmi2GetBoolean");
+            else
+                check(get_string(c, a.vr, n, a.string), "fmi2GetString");
+            /* The outputs of this type among the references read (the master reads the same ones each time, so the
+             * place found last is tried first). */
+            for (j = 0; j < n_out; j++) {
+                if (out_type[j] != call[4])
+                    continue;
+                if (!(out_at[j] < n && a.vr[out_at[j]] == out_vr[j])) {
                     for (k = 0; k < n && a.vr[k] != out_vr[j]; k++)
                         ;
-                    if (k == n) {
-                        fprintf(stderr, "master: %s:%lu: output %u is not among the Reals the master read here\n",
-                                trace_path, trace_line, (unsigned)out_vr[j]);
-                        return 1;
-                    }
+                    if (k == n)
+                        continue;
                     out_at[j] = k;
                 }
-                for (j = 0; j < n_out; j++)
-                    print_bits(a.real[out_at[j]], j == 0);
-                putchar('\n');
-            } else if (call[4] == 'i') {
-                check(get_integer(c, a.vr, n, a.integer), "fmi2GetInteger");
-            } else if (call[4] == 'b') {
-                check(get_boolean(c, a.vr, n, a.integer), "fmi2GetBoolean");
-            } else {
-                check(get_string(c, a.vr, n, a.string), "fmi2GetString");
+                out_value[j] = call[4] == 'r' ? a.real[out_at[j]]
+                               : call[4] == 'i' ? (double)a.integer[out_at[j]]
+                                                : (a.integer[out_at[j]] != fmi2False ? 1.0 : 0.0);
+                out_seen[j] = 1;
             }
         } else if (strcmp(call, "do_step") == 0) {
             double t = parse_real(&cursor, "no communication point");
@@ -577,11 +589,19 @@ static int replay(int argc, char **argv) {
             fmi2Boolean no_set = (fmi2Boolean)parse_int(&cursor, "no noSetFMUStatePriorToCurrentPoint", 0, 1);
             check(do_step(c, t, h, no_set), "fmi2DoStep");
         } else if (strcmp(call, "sample") == 0) {
-            char *checked;
-            word = need_word(&cursor, "no time");
-            checked = word;
-            parse_real(&checked, "no time");
-            printf("sample %s\n", word);
+            double t = parse_real(&cursor, "no time");
+            for (j = 0; j < n_out; j++) {
+                if (!out_seen[j]) {
+                    fprintf(stderr, "master: %s:%lu: output %s%u was not read before this sample\n", trace_path,
+                            trace_line, out_type[j] == 'r' ? "" : out_type[j] == 'i' ? "i:" : "b:",
+                            (unsigned)out_vr[j]);
+                    return 1;
+                }
+            }
+            print_bits(t, 1);
+            for (j = 0; j < n_out; j++)
+                print_bits(out_value[j], 0);
+            putchar('\n');
         } else if (strcmp(call, "enter_initialization_mode") == 0) {
             check(enter_init(c), "fmi2EnterInitializationMode");
         } else if (strcmp(call, "exit_initialization_mode") == 0) {
@@ -623,5 +643,8 @@ static int replay(int argc, char **argv) {
     free(a.string);
     free(out_vr);
     free(out_at);
+    free(out_type);
+    free(out_value);
+    free(out_seen);
     return 0;
 }

@@ -1,16 +1,26 @@
-//! The FMUs' win64 binaries under wine against their linux64 binaries: one C master (tests/wine/master.c), built for both, steps each bundled FMU with the same varied inputs and every output must agree.
+//! The FMUs' win64 binaries under wine against their linux64 binaries: one C master (tests/wine/master.c), built for both, steps each bundled FMU with the same varied inputs, and replays each unit of a `cosim --trace` run of case study I; every value must agree bit for bit.
 
-use dvpp_e2e::{dist, root, IDS};
+use dvpp_e2e::digest::{Digest, Table};
+use dvpp_e2e::{cosim, dist, root, scenario, IDS};
 use model_description::{Causality, ModelDescription, VariableKind};
+use std::collections::BTreeMap;
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+use std::sync::Mutex;
+use std::time::Instant;
 
 const STEPS: usize = 2000;
 const STEP_SIZE: f64 = 1e-3;
-/// Largest difference allowed between the two platforms (relative for values above 1).
-const TOLERANCE: f64 = 1e-12;
 const MINGW: &str = "x86_64-w64-mingw32-gcc";
+/// The system replayed unit by unit, and its committed digest (tests/tests/digest.rs).
+const REPLAYED: &str = "case1_load";
+/// Rows per block of the digest.
+const DIGEST_BLOCK: usize = 1000;
+
+/// The tests of this file one at a time: they share the wine prefix (made by the first run of
+/// wine) and the two cores.
+static WINE: Mutex<()> = Mutex::new(());
 
 /// Print a line the test harness does not capture (the reason of a skip, the measured result).
 fn say(line: &str) {
@@ -78,7 +88,7 @@ fn file_uri(path: &str, form: &str) -> String {
 /// Compile `sources` with `compiler` into `out`; panics with the compiler's message on failure.
 fn compile(compiler: &str, sources: &[PathBuf], args: &[&str], out: &Path) {
     let output = Command::new(compiler)
-        .args(["-std=c99", "-O2", "-Wall", "-Wextra", "-Werror", "-I"])
+        .args(["-std=c11", "-O2", "-Wall", "-Wextra", "-Werror", "-I"])
         .arg(root().join("fmi2").join("include"))
         .args(sources)
         .arg("-o")
@@ -147,64 +157,130 @@ fn rows(cmd: &mut Command, what: &str) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// The two builds of the test master and how to run the Windows one.
+struct Masters {
+    wine: PathBuf,
+    native: PathBuf,
+    exe: PathBuf,
+    prefix: PathBuf,
+}
+
+impl Masters {
+    /// Build both masters in `work/master`; `None` (after [`skip`]) without wine or mingw-w64.
+    fn build(work: &Path) -> Option<Masters> {
+        let Some(wine) = wine() else {
+            skip("no wine (apt-get install wine64; `cargo xtask test` installs it)");
+            return None;
+        };
+        if !runs(MINGW) {
+            skip(&format!(
+                "no {MINGW} to build the test master (apt-get install \
+                 gcc-mingw-w64-x86-64-win32; `cargo xtask test` installs it)"
+            ));
+            return None;
+        }
+        // The master for both platforms; next to the Windows one, the test-only stand-in for
+        // the bcryptprimitives.dll that wine 8 lacks (found there first when the FMU's DLL is
+        // loaded).
+        let src = root().join("tests").join("wine");
+        let bin = work.join("master");
+        std::fs::create_dir_all(&bin).expect("create the master's directory");
+        let (native, exe) = (bin.join("master"), bin.join("master.exe"));
+        let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+        compile(&cc, &[src.join("master.c")], &["-ldl"], &native);
+        compile(MINGW, &[src.join("master.c")], &[], &exe);
+        compile(
+            MINGW,
+            &[src.join("bcryptprimitives.c")],
+            &["-shared", "-ladvapi32"],
+            &bin.join("bcryptprimitives.dll"),
+        );
+        let prefix = Path::new(env!("CARGO_TARGET_TMPDIR")).join("wineprefix");
+        Some(Masters {
+            wine,
+            native,
+            exe,
+            prefix,
+        })
+    }
+
+    /// The Windows master under wine, ready for its arguments.
+    fn windows(&self) -> Command {
+        let mut c = Command::new(&self.wine);
+        c.arg(&self.exe)
+            .env("WINEPREFIX", &self.prefix)
+            .env("WINEDEBUG", "-all")
+            // No Mono or Gecko installer prompts when the prefix is made.
+            .env("WINEDLLOVERRIDES", "mscoree,mshtml=");
+        c
+    }
+}
+
+/// Open the FMU at `path` (model identifier `id`); `None` (after [`skip`]) when it was bundled
+/// without its win64 binary.
+fn open_fmu(path: &Path, id: &str) -> Option<zip::ZipArchive<std::fs::File>> {
+    let file = std::fs::File::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e} (run `cargo xtask bundle`)", path.display()));
+    let mut zip = zip::ZipArchive::new(file).expect("an FMU is a zip archive");
+    if zip.by_name(&format!("binaries/win64/{id}.dll")).is_err() {
+        skip(&format!(
+            "{} has no binaries/win64/{id}.dll (bundled without the \
+             x86_64-pc-windows-gnu target or mingw-w64; see `cargo xtask bundle`'s output)",
+            path.display()
+        ));
+        return None;
+    }
+    Some(zip)
+}
+
+/// The model description of an FMU archive.
+fn description(zip: &mut zip::ZipArchive<std::fs::File>) -> ModelDescription {
+    let mut xml = String::new();
+    zip.by_name("modelDescription.xml")
+        .expect("modelDescription.xml")
+        .read_to_string(&mut xml)
+        .expect("UTF-8");
+    ModelDescription::from_xml(&xml).expect("parse")
+}
+
+/// How far apart `a` and `b` are in units in the last place (across zero and for NaNs by the
+/// order of their bits; +0 and -0 are 0 apart).
+fn ulps(a: f64, b: f64) -> u64 {
+    let ordered = |x: f64| {
+        let b = x.to_bits() as i64;
+        if b < 0 {
+            i64::MIN.wrapping_sub(b)
+        } else {
+            b
+        }
+    };
+    ordered(a).wrapping_sub(ordered(b)).unsigned_abs()
+}
+
 #[test]
 fn win64_binaries_under_wine_match_linux64() {
-    let Some(wine) = wine() else {
-        skip("no wine (apt-get install wine64; `cargo xtask test` installs it)");
-        return;
-    };
-    if !runs(MINGW) {
-        skip(&format!(
-            "no {MINGW} to build the test master (apt-get install \
-             gcc-mingw-w64-x86-64-win32; `cargo xtask test` installs it)"
-        ));
-        return;
-    }
+    let _one = WINE.lock().unwrap_or_else(|e| e.into_inner());
     // Unpack each FMU under a directory with a space, so the resource URI is percent-encoded.
     let work = Path::new(env!("CARGO_TARGET_TMPDIR")).join("win64 test");
     let _ = std::fs::remove_dir_all(&work);
     let mut fmus = Vec::new();
     for id in IDS {
         let path = dist().join(format!("{id}.fmu"));
-        let file = std::fs::File::open(&path)
-            .unwrap_or_else(|e| panic!("{}: {e} (run `cargo xtask bundle`)", path.display()));
-        let mut zip = zip::ZipArchive::new(file).expect("an FMU is a zip archive");
-        if zip.by_name(&format!("binaries/win64/{id}.dll")).is_err() {
-            skip(&format!(
-                "{} has no binaries/win64/{id}.dll (bundled without the \
-                 x86_64-pc-windows-gnu target or mingw-w64; see `cargo xtask bundle`'s output)",
-                path.display()
-            ));
+        let Some(mut zip) = open_fmu(&path, id) else {
             return;
-        }
-        let mut xml = String::new();
-        zip.by_name("modelDescription.xml")
-            .expect("modelDescription.xml")
-            .read_to_string(&mut xml)
-            .expect("UTF-8");
+        };
+        let md = description(&mut zip);
         let dir = work.join(id);
         zip.extract(&dir).expect("unpack the FMU");
-        fmus.push((id, dir, ModelDescription::from_xml(&xml).expect("parse")));
+        fmus.push((id, dir, md));
     }
+    let Some(masters) = Masters::build(&work) else {
+        return;
+    };
 
-    // The master for both platforms; next to the Windows one, the test-only stand-in for the
-    // bcryptprimitives.dll that wine 8 lacks (found there first when the FMU's DLL is loaded).
-    let src = root().join("tests").join("wine");
-    let bin = work.join("master");
-    std::fs::create_dir_all(&bin).expect("create the master's directory");
-    let (native, exe) = (bin.join("master"), bin.join("master.exe"));
-    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    compile(&cc, &[src.join("master.c")], &["-ldl"], &native);
-    compile(MINGW, &[src.join("master.c")], &[], &exe);
-    compile(
-        MINGW,
-        &[src.join("bcryptprimitives.c")],
-        &["-shared", "-ladvapi32"],
-        &bin.join("bcryptprimitives.dll"),
-    );
-    let prefix = Path::new(env!("CARGO_TARGET_TMPDIR")).join("wineprefix");
-
-    let mut worst_overall: f64 = 0.0;
+    // Every output that differs anywhere: FMU, output, values that differ, the largest
+    // difference (ULPs, relative), where.
+    let mut differing = Vec::new();
     for ((id, dir, md), &form) in fmus.iter().zip(URI_FORMS.iter().cycle()) {
         let (inputs, outputs) = inputs_and_outputs(md);
         let resources = dir.join("resources");
@@ -217,7 +293,7 @@ fn win64_binaries_under_wine_match_linux64() {
                 .arg(&inputs)
                 .arg(&outputs);
         };
-        let mut linux = Command::new(&native);
+        let mut linux = Command::new(&masters.native);
         let so = dir
             .join("binaries")
             .join("linux64")
@@ -228,13 +304,7 @@ fn win64_binaries_under_wine_match_linux64() {
             &file_uri(&resources.display().to_string(), form),
         );
         let dll = dir.join("binaries").join("win64").join(format!("{id}.dll"));
-        let mut windows = Command::new(&wine);
-        windows
-            .arg(&exe)
-            .env("WINEPREFIX", &prefix)
-            .env("WINEDEBUG", "-all")
-            // No Mono or Gecko installer prompts when the prefix is made.
-            .env("WINEDLLOVERRIDES", "mscoree,mshtml=");
+        let mut windows = masters.windows();
         let uri = file_uri(&windows_path(&resources), form);
         assert!(uri.contains("/Z:/") && uri.contains("%20"), "{uri}");
         common(&mut windows, windows_path(&dll), &uri);
@@ -252,7 +322,13 @@ fn win64_binaries_under_wine_match_linux64() {
             })
             .map(|v| v.name.as_str())
             .collect();
-        let (mut worst, mut at, mut exact) = (0.0_f64, (0, 0), 0usize);
+        // The two platforms must agree bit for bit (0 ULP): every transcendental function comes
+        // from one implementation built into the binaries (dvpp-math over libm), so a
+        // difference is a call that still reaches a platform's libm. Per output: values that
+        // differ, the largest difference in ULPs (and relative, for values above 1), the step
+        // of the first difference.
+        let mut per_output = vec![(0usize, 0u64, 0.0f64, None::<usize>); names.len()];
+        let mut exact = 0usize;
         for (k, (ra, rb)) in a.iter().zip(&b).enumerate() {
             assert_eq!(ra.len(), names.len(), "{id}: outputs at step {k}");
             assert_eq!(rb.len(), names.len(), "{id}: outputs at step {k}");
@@ -261,29 +337,294 @@ fn win64_binaries_under_wine_match_linux64() {
                     exact += 1;
                     continue;
                 }
-                let d = (x - y).abs() / x.abs().max(1.0);
-                assert!(
-                    d <= TOLERANCE,
-                    "{id}: {} differs at step {k}: linux64 {x:e}, win64 {y:e}",
+                // +0 and -0 are 0 ULPs apart but not the same bits.
+                let u = ulps(*x, *y).max(1);
+                let o = &mut per_output[j];
+                o.0 += 1;
+                o.1 = o.1.max(u);
+                o.2 = o.2.max((x - y).abs() / x.abs().max(1.0));
+                o.3.get_or_insert(k);
+            }
+        }
+        for (j, (count, worst, rel, first)) in per_output.iter().enumerate() {
+            if let Some(first) = first {
+                differing.push(format!(
+                    "{id}.{}: {count} of {STEPS} values differ, by up to {worst} ULPs \
+                     ({rel:e} relative), first at step {first}",
                     names[j]
-                );
-                if d > worst {
-                    (worst, at) = (d, (k, j));
-                }
+                ));
             }
         }
         let total = STEPS * names.len();
         say(&format!(
             "{id}: win64 under wine vs linux64, {STEPS} steps x {} outputs, resources at {uri}: \
-             largest difference {worst:e}{}; {exact} of {total} values bit-identical",
+             {exact} of {total} values bit-identical",
             names.len(),
-            if worst > 0.0 {
-                format!(" ({} at step {})", names[at.1], at.0)
-            } else {
-                String::new()
-            }
         ));
-        worst_overall = worst_overall.max(worst);
     }
-    assert!(worst_overall <= TOLERANCE);
+    for d in &differing {
+        say(&format!("win64 differs: {d}"));
+    }
+    assert!(
+        differing.is_empty(),
+        "{} outputs of the win64 binaries differ from linux64 (a call that still reaches the \
+         platform's libm?):\n{}",
+        differing.len(),
+        differing.join("\n")
+    );
+}
+
+/// One unit of the replayed system: its component name, unpacked FMU, model description and
+/// recorded columns (index in the CSV, the output as the replay names it: `VR`, `i:VR`, `b:VR`).
+struct Replayed {
+    name: String,
+    dir: PathBuf,
+    md: ModelDescription,
+    columns: Vec<(usize, String)>,
+}
+
+/// A replay's output: the time and the outputs at each `sample` of the trace (as the master
+/// recorded them there); checks the closing "done".
+fn samples(cmd: &mut Command, what: &str, outputs: usize) -> Vec<(f64, Vec<f64>)> {
+    let out = cmd
+        .output()
+        .unwrap_or_else(|e| panic!("{what}: cannot start: {e}"));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && stdout.trim_end().ends_with("done"),
+        "{what}: {}\n{}",
+        out.status,
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let bits = |h: &str| f64::from_bits(u64::from_str_radix(h, 16).expect("16 hex digits"));
+    stdout
+        .lines()
+        .map(str::trim)
+        .take_while(|l| *l != "done")
+        .map(|line| {
+            let mut values: Vec<f64> = line.split_whitespace().map(bits).collect();
+            assert_eq!(values.len(), 1 + outputs, "{what}: {line:?}");
+            let t = values.remove(0);
+            (t, values)
+        })
+        .collect()
+}
+
+/// Check that `rows` (a replay of `unit`) gives the recorded `csv` columns bit for bit;
+/// returns the values compared.
+fn check_replay(unit: &Replayed, rows: &[(f64, Vec<f64>)], csv: &Table, what: &str) -> usize {
+    assert_eq!(
+        rows.len(),
+        csv.rows(),
+        "{what}: samples against the CSV's rows"
+    );
+    for (k, (t, values)) in rows.iter().enumerate() {
+        assert_eq!(
+            t.to_bits(),
+            csv.columns[0][k].to_bits(),
+            "{what}: sample {k} at t = {t} s, the CSV's row at {} s",
+            csv.columns[0][k]
+        );
+        for ((c, _), v) in unit.columns.iter().zip(values) {
+            let recorded = csv.columns[*c][k];
+            assert!(
+                v.to_bits() == recorded.to_bits(),
+                "{what}: {} at t = {t} s: replayed {v:e} ({:016x}), recorded {recorded:e} \
+                 ({:016x}), {} ULPs apart",
+                csv.names[*c],
+                v.to_bits(),
+                recorded.to_bits(),
+                ulps(*v, recorded)
+            );
+        }
+    }
+    rows.len() * unit.columns.len()
+}
+
+#[test]
+fn case1_load_replayed_under_wine_matches_its_digest() {
+    let _one = WINE.lock().unwrap_or_else(|e| e.into_inner());
+    let work = Path::new(env!("CARGO_TARGET_TMPDIR")).join("win64 replay");
+    let _ = std::fs::remove_dir_all(&work);
+    std::fs::create_dir_all(&work).expect("create the work directory");
+    let ssp = scenario(REPLAYED);
+    let package = dvpp_cosim::ssp::read(&ssp).unwrap_or_else(|e| panic!("{e}"));
+
+    // Each component's FMU (the one the SSD names), unpacked once per archive.
+    let mut unpacked: BTreeMap<PathBuf, (PathBuf, ModelDescription)> = BTreeMap::new();
+    let mut units = Vec::new();
+    for c in &package.system.components {
+        let path = package.source_path(c);
+        if !unpacked.contains_key(&path) {
+            let mut zip = zip::ZipArchive::new(std::fs::File::open(&path).expect("open the FMU"))
+                .expect("an FMU is a zip archive");
+            let md = description(&mut zip);
+            let id = md.model_identifier().expect("co-simulation").to_owned();
+            let Some(mut zip) = open_fmu(&path, &id) else {
+                return;
+            };
+            let dir = work.join(format!("fmu {}", unpacked.len()));
+            zip.extract(&dir).expect("unpack the FMU");
+            unpacked.insert(path.clone(), (dir, md));
+        }
+        let (dir, md) = &unpacked[&path];
+        units.push(Replayed {
+            name: c.name.clone(),
+            dir: dir.clone(),
+            md: md.clone(),
+            columns: Vec::new(),
+        });
+    }
+    let Some(masters) = Masters::build(&work) else {
+        return;
+    };
+
+    // The master's run, every output recorded and every unit traced.
+    let (csv_path, traces) = (work.join("run.csv"), work.join("traces"));
+    let started = Instant::now();
+    let run = Command::new(cosim())
+        .arg(&ssp)
+        .args(["--record", "all", "--out"])
+        .arg(&csv_path)
+        .arg("--trace")
+        .arg(&traces)
+        .output()
+        .expect("run cosim");
+    assert!(
+        run.status.success(),
+        "cosim {}: {}",
+        ssp.display(),
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let master_time = started.elapsed();
+    let csv = Table::read_csv(&csv_path).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(csv.names[0], "time");
+
+    // Every column is one unit's Real output: `unit.variable`.
+    for (c, column) in csv.names.iter().enumerate().skip(1) {
+        let unit = units
+            .iter_mut()
+            .find(|u| {
+                column
+                    .strip_prefix(u.name.as_str())
+                    .is_some_and(|rest| rest.starts_with('.'))
+            })
+            .unwrap_or_else(|| panic!("column {column}: no unit of that name"));
+        let var = &column[unit.name.len() + 1..];
+        let v = unit
+            .md
+            .variable(var)
+            .unwrap_or_else(|| panic!("column {column}: no variable {var}"));
+        let prefix = match v.kind {
+            VariableKind::Real(_) => "",
+            VariableKind::Integer(_) | VariableKind::Enumeration(_) => "i:",
+            VariableKind::Boolean(_) => "b:",
+            _ => panic!("column {column}: neither Real, Integer nor Boolean"),
+        };
+        unit.columns
+            .push((c, format!("{prefix}{}", v.value_reference)));
+    }
+
+    // Each unit replayed from its trace by the native master on its .so and by the Windows one
+    // under wine on its .dll.
+    let mut wine: Vec<Vec<f64>> = vec![Vec::new(); csv.names.len()];
+    let (mut compared, mut wine_time, mut units_done) = (0usize, std::time::Duration::ZERO, 0);
+    for unit in &units {
+        let id = unit.md.model_identifier().expect("co-simulation");
+        let trace = traces.join(format!("{}.trace", unit.name));
+        assert!(trace.is_file(), "{}: no trace", trace.display());
+        let outputs: Vec<&str> = unit.columns.iter().map(|(_, o)| o.as_str()).collect();
+        let outputs = if outputs.is_empty() {
+            "-".to_owned()
+        } else {
+            outputs.join(",")
+        };
+        let resources = unit.dir.join("resources");
+        let so = unit.dir.join("binaries/linux64").join(format!("{id}.so"));
+        let dll = unit.dir.join("binaries/win64").join(format!("{id}.dll"));
+
+        let mut linux = Command::new(&masters.native);
+        linux
+            .arg("replay")
+            .arg(&so)
+            .arg(&unit.md.guid)
+            .arg(file_uri(&resources.display().to_string(), "file://"))
+            .arg(&trace)
+            .arg(&outputs);
+        let what = format!("{}: linux64 replay", unit.name);
+        let rows = samples(&mut linux, &what, unit.columns.len());
+        compared += check_replay(unit, &rows, &csv, &what);
+
+        let mut windows = masters.windows();
+        windows
+            .arg("replay")
+            .arg(windows_path(&dll))
+            .arg(&unit.md.guid)
+            .arg(file_uri(&windows_path(&resources), "file://"))
+            .arg(windows_path(&trace))
+            .arg(&outputs);
+        let what = format!("{}: win64 replay under wine", unit.name);
+        let started = Instant::now();
+        let rows = samples(&mut windows, &what, unit.columns.len());
+        wine_time += started.elapsed();
+        check_replay(unit, &rows, &csv, &what);
+
+        // The result table of the wine replays: time from their samples, each column from its
+        // unit's replay.
+        let times: Vec<f64> = rows.iter().map(|r| r.0).collect();
+        if units_done == 0 {
+            wine[0] = times;
+        } else {
+            assert!(
+                wine[0]
+                    .iter()
+                    .zip(&times)
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "{what}: other sample times than the first unit's"
+            );
+        }
+        for (j, (c, _)) in unit.columns.iter().enumerate() {
+            wine[*c] = rows.iter().map(|r| r.1[j]).collect();
+        }
+        units_done += 1;
+    }
+
+    let table = Table {
+        names: csv.names.clone(),
+        columns: wine,
+    };
+    let (rows, columns) = (table.rows(), table.names.len());
+    say(&format!(
+        "{REPLAYED}: the master's run ({} rows x {} columns, traced) in {:.1} s; {} units \
+         replayed from their traces on linux64 and under wine: {compared} values bit-identical \
+         to the run on both; the wine replays took {:.1} s",
+        csv.rows(),
+        columns,
+        master_time.as_secs_f64(),
+        units.len(),
+        wine_time.as_secs_f64()
+    ));
+    let committed = root()
+        .join("tests")
+        .join("digests")
+        .join(format!("{REPLAYED}.txt"));
+    let text = std::fs::read_to_string(&committed).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e} (the committed digest of {REPLAYED}, see tests/tests/digest.rs)",
+            committed.display()
+        )
+    });
+    let expected = Digest::parse(&text).unwrap_or_else(|e| panic!("{}: {e}", committed.display()));
+    let got = Digest::of(&table, DIGEST_BLOCK);
+    if let Some(difference) = got.first_difference(&expected) {
+        panic!(
+            "{REPLAYED} from the win64 binaries under wine ({rows} rows x {columns} columns) \
+             differs from {}: {difference}",
+            committed.display()
+        );
+    }
+    say(&format!(
+        "{REPLAYED}: the digest of the win64 replays ({rows} rows x {columns} columns) equals {}",
+        committed.display()
+    ));
 }

@@ -15,6 +15,7 @@ const USAGE: &str = "usage: cosim SYSTEM.ssp|SYSTEM_DIR|SYSTEM.ssd|FILE.fmu [--s
              [--relaxation W] [--max-iterations N]] [--threads N|all]
              [--out FILE.csv|FILE.mat | --no-csv] [--record PATTERN,...|all]
              [--output-interval T] [--plot FILE.svg] [--signals component.variable,...]
+             [--trace DIR]
 
 Simulates an SSP system (an .ssp archive, a directory with SystemStructure.ssd, or an .ssd file)
 from its DefaultExperiment and OSP step size, or one FMU on its own (inputs held at their start
@@ -45,7 +46,10 @@ unpacked files and exits non-zero (1 on an error, such as a full disk or a file 
 place (a pipe nothing reads is refused); FILE.csv may not be a directory, the input, inside
 an SSP directory given as the input, or a file the system reads. --no-csv
 records nothing (benchmarks). --plot draws the --signals (default: the first six columns)
-against time as an SVG figure; it keeps the results in memory.
+against time as an SVG figure; it keeps the results in memory. --trace DIR writes, per
+component, DIR/<component>.trace: every call the master makes to its instance, in order, as
+text (reals as the hex digits of their bits), with a `sample` line where a communication point
+was recorded, so that one unit can be replayed alone in another tool (docs/usage.md).
 
        cosim federate SYSTEM.ssp --component NAME[,NAME...] --broker HOST[:PORT] [--name FED]
              [--out FILE.csv] [--stop T] [--step H] [--helics-lib PATH] [--core tcpss|zmq|tcp|...]
@@ -74,6 +78,7 @@ struct Args {
     plot: Option<PathBuf>,
     signals: Vec<String>,
     record: Record,
+    trace: Option<PathBuf>,
 }
 
 /// The result file of a run: CSV, or MATLAB v4 for an `--out` ending in `.mat`.
@@ -185,6 +190,7 @@ fn parse() -> Result<Args, String> {
                     .filter(|n| *n > 0)
                     .ok_or(format!("--max-iterations {v}: not a positive whole number"))?;
             }
+            "--trace" => args.trace = Some(it.next().ok_or("--trace needs a directory")?.into()),
             "--plot" => args.plot = Some(it.next().ok_or("--plot needs a file")?.into()),
             "--signals" => {
                 let v = it.next().ok_or("--signals needs a list")?;
@@ -382,11 +388,13 @@ fn main() -> ExitCode {
         Some(p) => p.into(),
         None => (&args.system).into(),
     };
-    let outcome = match System::builder(source)
+    let mut builder = System::builder(source)
         .threads(args.threads)
-        .algorithm(algorithm)
-        .run(&args.opts, &mut observers)
-    {
+        .algorithm(algorithm);
+    if let Some(dir) = &args.trace {
+        builder = builder.trace(dir);
+    }
+    let outcome = match builder.run(&args.opts, &mut observers) {
         Ok(o) => o,
         Err(e) => {
             eprintln!("cosim: {e}");

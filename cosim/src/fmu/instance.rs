@@ -1,6 +1,7 @@
 //! An instance of a loaded FMU and its FMI 2.0 Co-Simulation calls.
 
 use super::log::{dvpp_cosim_logger, LogRecord, LogSink};
+use super::trace::Trace;
 use super::{err, Error, Fmu, Status};
 use std::ffi::{c_char, c_int, c_void, CStr, CString};
 use std::ptr::NonNull;
@@ -17,6 +18,17 @@ impl Fmu {
         self.instantiate_with(name, &guid, &self.resource_uri(), 1)
     }
 
+    /// [`Fmu::instantiate`], every call to the instance from `fmi2Instantiate` on written to
+    /// `trace` (see [`super::trace`]).
+    pub fn instantiate_traced(
+        self: &Arc<Self>,
+        name: &str,
+        trace: Option<Trace>,
+    ) -> Result<Instance, Error> {
+        let guid = self.description.guid.clone();
+        self.instantiate_inner(name, &guid, &self.resource_uri(), 1, trace.map(Box::new))
+    }
+
     /// Instantiate with explicit GUID, resource URI and `fmuType` (for tests of bad calls).
     pub fn instantiate_with(
         self: &Arc<Self>,
@@ -24,6 +36,17 @@ impl Fmu {
         guid: &str,
         resources: &str,
         fmu_type: i32,
+    ) -> Result<Instance, Error> {
+        self.instantiate_inner(name, guid, resources, fmu_type, None)
+    }
+
+    fn instantiate_inner(
+        self: &Arc<Self>,
+        name: &str,
+        guid: &str,
+        resources: &str,
+        fmu_type: i32,
+        mut trace: Option<Box<Trace>>,
     ) -> Result<Instance, Error> {
         // The sink and the callbacks are where the FMU's pointers lead for the instance's whole
         // life: each is allocated once here and never moved, re-boxed or borrowed uniquely
@@ -43,6 +66,9 @@ impl Fmu {
             component_environment: Arc::as_ptr(&sink) as *mut c_void,
         })));
         let (c_name, c_guid, c_res) = (cstring(name)?, cstring(guid)?, cstring(resources)?);
+        if let Some(t) = &mut trace {
+            t.instantiate(name, fmu_type, guid, resources);
+        }
         // SAFETY: valid C strings; the callbacks struct and the sink it points to stay at their
         // addresses until the instance is freed (`Instance`'s Drop), or until just below when
         // no instance was made.
@@ -74,6 +100,7 @@ impl Fmu {
             component,
             sink,
             callbacks,
+            trace,
         })
     }
 }
@@ -105,6 +132,9 @@ pub struct Instance {
     sink: Arc<LogSink>,
     /// A leaked `Box`, freed in Drop.
     callbacks: NonNull<CallbackFunctions>,
+    /// Where the calls that change the instance's state, and its reads, are recorded (only
+    /// when asked: otherwise one test of `None` per call).
+    trace: Option<Box<Trace>>,
 }
 
 // SAFETY: an FMI 2.0 instance shares no state with the other instances of its binary through
@@ -164,6 +194,16 @@ impl Instance {
             .map(|r| r.message.clone())
     }
 
+    /// The trace of the instance's calls, when it has one (to add [`Trace::sample`] marks).
+    pub fn trace_mut(&mut self) -> Option<&mut Trace> {
+        self.trace.as_deref_mut()
+    }
+
+    /// Flush the trace, if any: the first error writing it.
+    pub fn finish_trace(&mut self) -> Result<(), String> {
+        self.trace.as_mut().map_or(Ok(()), |t| t.finish())
+    }
+
     fn api(&self) -> &Api {
         &self.fmu.library.api
     }
@@ -181,6 +221,9 @@ impl Instance {
     }
 
     pub fn setup_experiment(&mut self, start: f64, stop: Option<f64>) -> Status {
+        if let Some(t) = &mut self.trace {
+            t.setup_experiment(None, start, stop);
+        }
         // SAFETY: plain values.
         Status::from_c(unsafe {
             (self.api().setup_experiment)(
@@ -195,27 +238,42 @@ impl Instance {
     }
 
     pub fn enter_initialization_mode(&mut self) -> Status {
+        if let Some(t) = &mut self.trace {
+            t.call("enter_initialization_mode");
+        }
         // SAFETY: valid component.
         Status::from_c(unsafe { (self.api().enter_initialization_mode)(self.component) })
     }
 
     pub fn exit_initialization_mode(&mut self) -> Status {
+        if let Some(t) = &mut self.trace {
+            t.call("exit_initialization_mode");
+        }
         // SAFETY: valid component.
         Status::from_c(unsafe { (self.api().exit_initialization_mode)(self.component) })
     }
 
     pub fn terminate(&mut self) -> Status {
+        if let Some(t) = &mut self.trace {
+            t.call("terminate");
+        }
         // SAFETY: valid component.
         Status::from_c(unsafe { (self.api().terminate)(self.component) })
     }
 
     pub fn reset(&mut self) -> Status {
+        if let Some(t) = &mut self.trace {
+            t.call("reset");
+        }
         // SAFETY: valid component.
         Status::from_c(unsafe { (self.api().reset)(self.component) })
     }
 
     pub fn get_real(&mut self, vrs: &[u32], out: &mut [f64]) -> Status {
         assert_eq!(vrs.len(), out.len());
+        if let Some(t) = &mut self.trace {
+            t.get("get_real", vrs);
+        }
         // SAFETY: arrays of equal, stated length.
         Status::from_c(unsafe {
             (self.api().get_real)(self.component, vrs.as_ptr(), vrs.len(), out.as_mut_ptr())
@@ -224,6 +282,9 @@ impl Instance {
 
     pub fn set_real(&mut self, vrs: &[u32], values: &[f64]) -> Status {
         assert_eq!(vrs.len(), values.len());
+        if let Some(t) = &mut self.trace {
+            t.set_real(vrs, values);
+        }
         // SAFETY: arrays of equal, stated length.
         Status::from_c(unsafe {
             (self.api().set_real)(self.component, vrs.as_ptr(), vrs.len(), values.as_ptr())
@@ -232,6 +293,9 @@ impl Instance {
 
     pub fn get_integer(&mut self, vrs: &[u32], out: &mut [i32]) -> Status {
         assert_eq!(vrs.len(), out.len());
+        if let Some(t) = &mut self.trace {
+            t.get("get_integer", vrs);
+        }
         // SAFETY: arrays of equal, stated length.
         Status::from_c(unsafe {
             (self.api().get_integer)(self.component, vrs.as_ptr(), vrs.len(), out.as_mut_ptr())
@@ -240,6 +304,9 @@ impl Instance {
 
     pub fn set_integer(&mut self, vrs: &[u32], values: &[i32]) -> Status {
         assert_eq!(vrs.len(), values.len());
+        if let Some(t) = &mut self.trace {
+            t.set_integer(vrs, values);
+        }
         // SAFETY: arrays of equal, stated length.
         Status::from_c(unsafe {
             (self.api().set_integer)(self.component, vrs.as_ptr(), vrs.len(), values.as_ptr())
@@ -248,6 +315,9 @@ impl Instance {
 
     pub fn get_boolean(&mut self, vrs: &[u32], out: &mut [bool]) -> Status {
         let mut raw = vec![0; vrs.len()];
+        if let Some(t) = &mut self.trace {
+            t.get("get_boolean", vrs);
+        }
         // SAFETY: arrays of equal, stated length.
         let s = Status::from_c(unsafe {
             (self.api().get_boolean)(self.component, vrs.as_ptr(), vrs.len(), raw.as_mut_ptr())
@@ -260,6 +330,9 @@ impl Instance {
 
     pub fn set_boolean(&mut self, vrs: &[u32], values: &[bool]) -> Status {
         let raw: Vec<c_int> = values.iter().map(|&b| b as c_int).collect();
+        if let Some(t) = &mut self.trace {
+            t.set_boolean(vrs, &raw);
+        }
         // SAFETY: arrays of equal, stated length.
         Status::from_c(unsafe {
             (self.api().set_boolean)(self.component, vrs.as_ptr(), vrs.len(), raw.as_ptr())
@@ -268,6 +341,9 @@ impl Instance {
 
     pub fn get_string(&mut self, vrs: &[u32]) -> (Status, Vec<String>) {
         let mut raw = vec![std::ptr::null(); vrs.len()];
+        if let Some(t) = &mut self.trace {
+            t.get("get_string", vrs);
+        }
         // SAFETY: arrays of equal length; strings copied before the next call.
         unsafe {
             let s = Status::from_c((self.api().get_string)(
@@ -293,6 +369,9 @@ impl Instance {
     pub fn set_string(&mut self, vrs: &[u32], values: &[&str]) -> Status {
         let c: Vec<CString> = values.iter().map(|s| CString::new(*s).unwrap()).collect();
         let p: Vec<*const c_char> = c.iter().map(|s| s.as_ptr()).collect();
+        if let Some(t) = &mut self.trace {
+            t.set_string(vrs, values);
+        }
         // SAFETY: arrays of equal, stated length.
         Status::from_c(unsafe {
             (self.api().set_string)(self.component, vrs.as_ptr(), vrs.len(), p.as_ptr())
@@ -300,6 +379,9 @@ impl Instance {
     }
 
     pub fn do_step(&mut self, t: f64, h: f64) -> Status {
+        if let Some(trace) = &mut self.trace {
+            trace.do_step(t, h, true);
+        }
         // SAFETY: plain values.
         Status::from_c(unsafe { (self.api().do_step)(self.component, t, h, 1) })
     }
@@ -307,6 +389,9 @@ impl Instance {
     /// `fmi2GetFMUstate` into a new state.
     pub fn get_state(&mut self) -> (Status, Option<SavedState>) {
         let mut s: FmuState = std::ptr::null_mut();
+        if let Some(t) = &mut self.trace {
+            t.call("get_fmu_state");
+        }
         // SAFETY: out-pointer to a null state asks for a new one.
         let status = Status::from_c(unsafe { (self.api().get_fmu_state)(self.component, &mut s) });
         (status, (!s.is_null()).then_some(SavedState(s)))
@@ -314,16 +399,25 @@ impl Instance {
 
     /// `fmi2GetFMUstate` into a state this FMU made before (overwritten, no allocation).
     pub fn update_state(&mut self, s: &mut SavedState) -> Status {
+        if let Some(t) = &mut self.trace {
+            t.call("get_fmu_state");
+        }
         // SAFETY: out-pointer to a state of this FMU asks for an overwrite.
         Status::from_c(unsafe { (self.api().get_fmu_state)(self.component, &mut s.0) })
     }
 
     pub fn set_state(&mut self, s: &SavedState) -> Status {
+        if let Some(t) = &mut self.trace {
+            t.call("set_fmu_state");
+        }
         // SAFETY: a state this FMU made.
         Status::from_c(unsafe { (self.api().set_fmu_state)(self.component, s.0) })
     }
 
     pub fn free_state(&mut self, mut s: SavedState) -> Status {
+        if let Some(t) = &mut self.trace {
+            t.call("free_fmu_state");
+        }
         // SAFETY: a state this FMU made; freed once.
         Status::from_c(unsafe { (self.api().free_fmu_state)(self.component, &mut s.0) })
     }
@@ -358,6 +452,9 @@ impl Instance {
     /// Turn bytes back into a saved state of this instance.
     pub fn deserialize_state(&mut self, bytes: &[u8]) -> (Status, Option<SavedState>) {
         let mut s: FmuState = std::ptr::null_mut();
+        if let Some(t) = &mut self.trace {
+            t.call("unsupported fmi2DeSerializeFMUstate");
+        }
         // SAFETY: buffer of the stated length; out-pointer to a null state.
         let st = Status::from_c(unsafe {
             (self.api().deserialize_fmu_state)(

@@ -6,11 +6,13 @@ mod instance;
 mod library;
 mod load;
 mod log;
+pub mod trace;
 
 pub use instance::{Instance, SavedState};
 pub use library::{Library, Sharing};
 pub use load::Fmu;
 pub use log::LogRecord;
+pub use trace::Trace;
 
 use std::fmt;
 

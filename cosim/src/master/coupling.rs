@@ -360,9 +360,22 @@ impl Core {
         self.row.push(seconds(t));
         for u in self.units.iter_mut().filter(|u| u.is_local()) {
             u.refresh(&mut self.warnings)?;
+            u.trace_sample(seconds(t));
             self.row.extend_from_slice(u.values());
         }
         Ok(())
+    }
+
+    /// Flush every unit's trace (`--trace`): the first error writing one.
+    pub(crate) fn finish_traces(&mut self) -> Result<(), Error> {
+        let mut first = Ok(());
+        for u in &mut self.units {
+            let r = u.finish_trace();
+            if first.is_ok() {
+                first = r;
+            }
+        }
+        first
     }
 
     /// `fmi2Terminate` of every local unit.

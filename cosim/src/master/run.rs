@@ -167,6 +167,15 @@ impl System {
             let span = Span { start, stop, step };
             result = self.drive(span, algorithm, observers, &mut tally);
         }
+        // The traces (`--trace`) are flushed however the run went: a failed run's is the one
+        // worth replaying.
+        if let Err(e) = self.core_mut().finish_traces() {
+            if result.is_ok() {
+                result = Err(e);
+            } else {
+                eprintln!("cosim: {e}");
+            }
+        }
         let Tally { last, samples } = tally;
         let at = last.map_or(seconds(start), seconds);
         let end = match result {

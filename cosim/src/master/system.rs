@@ -45,6 +45,7 @@ pub struct Builder<'a> {
     sharing: Sharing,
     threads: usize,
     algorithm: Option<&'a mut dyn Algorithm>,
+    trace: Option<&'a Path>,
 }
 
 impl<'a> Builder<'a> {
@@ -71,6 +72,14 @@ impl<'a> Builder<'a> {
         self
     }
 
+    /// Record every call to each unit in `<dir>/<component>.trace` (the directory is made when
+    /// missing; traces there are replaced), for replaying one unit alone in another tool: the
+    /// format is in [`crate::fmu::trace`].
+    pub fn trace(mut self, dir: &'a Path) -> Self {
+        self.trace = Some(dir);
+        self
+    }
+
     /// The algorithm given to [`Builder::algorithm`], taken (once).
     pub(super) fn take_algorithm(&mut self) -> Option<&'a mut dyn Algorithm> {
         self.algorithm.take()
@@ -80,14 +89,20 @@ impl<'a> Builder<'a> {
     /// One `.fmu` on its own: every output recorded, inputs held at their start values, the
     /// experiment from its `DefaultExperiment` (stop 1 s and step 1 ms where it gives none).
     pub fn load(&self) -> Result<System, Error> {
+        if let Some(dir) = self.trace {
+            std::fs::create_dir_all(dir).map_err(|e| {
+                Error::Load(format!("--trace: cannot create {}: {e}", dir.display()))
+            })?;
+        }
+        let trace = self.trace;
         let mut system = match self.source {
             Source::Path(path) if path.extension().is_some_and(|e| e == "fmu") => {
-                System::from_fmu(path, self.sharing)?
+                System::from_fmu(path, self.sharing, trace)?
             }
             // An unpacked .ssp lives as long as its FMUs are loaded (they are unpacked again
             // each).
-            Source::Path(path) => System::from_package(&ssp::read(path)?, self.sharing)?,
-            Source::Package(package) => System::from_package(package, self.sharing)?,
+            Source::Path(path) => System::from_package(&ssp::read(path)?, self.sharing, trace)?,
+            Source::Package(package) => System::from_package(package, self.sharing, trace)?,
         };
         system.threads = self.threads;
         Ok(system)
@@ -121,10 +136,15 @@ impl System {
             sharing: Sharing::Shared,
             threads: 1,
             algorithm: None,
+            trace: None,
         }
     }
 
-    fn from_package(package: &ssp::Package, sharing: Sharing) -> Result<System, Error> {
+    fn from_package(
+        package: &ssp::Package,
+        sharing: Sharing,
+        trace: Option<&Path>,
+    ) -> Result<System, Error> {
         let sys = &package.system;
         let mut fmus = Vec::with_capacity(sys.components.len());
         for c in &sys.components {
@@ -132,10 +152,10 @@ impl System {
                 .map_err(|e| Error::Load(format!("component '{}' ({}): {e}", c.name, c.source)))?;
             fmus.push(Arc::new(fmu));
         }
-        System::assemble(sys, fmus)
+        System::assemble(sys, fmus, trace)
     }
 
-    fn from_fmu(path: &Path, sharing: Sharing) -> Result<System, Error> {
+    fn from_fmu(path: &Path, sharing: Sharing, trace: Option<&Path>) -> Result<System, Error> {
         let fmu = Fmu::load_with(path, sharing)
             .map_err(|e| Error::Load(format!("{}: {e}", path.display())))?;
         let fmu = Arc::new(fmu);
@@ -168,14 +188,18 @@ impl System {
             step_size: Some(de.step_size.unwrap_or(1e-3)),
             record: Vec::new(),
         };
-        System::assemble(&sys, vec![fmu])
+        System::assemble(&sys, vec![fmu], trace)
     }
 
     /// Resolve the connections and parameter bindings of `sys` over its loaded FMUs.
-    fn assemble(sys: &ssp::System, fmus: Vec<Arc<Fmu>>) -> Result<System, Error> {
+    fn assemble(
+        sys: &ssp::System,
+        fmus: Vec<Arc<Fmu>>,
+        trace: Option<&Path>,
+    ) -> Result<System, Error> {
         let mut units = Vec::with_capacity(fmus.len());
         for (c, fmu) in sys.components.iter().zip(fmus) {
-            units.push(Unit::load(c, fmu)?);
+            units.push(Unit::load(c, fmu, trace)?);
         }
         let links = connect(sys, &mut units)?;
         let parameters = bind(sys, &units)?;

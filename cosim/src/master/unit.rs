@@ -3,10 +3,11 @@
 
 use super::graph::Phase;
 use super::Error;
-use crate::fmu::{Fmu, Instance, Library, SavedState, Status};
+use crate::fmu::{Fmu, Instance, Library, SavedState, Status, Trace};
 use crate::ssp::{self, Component, Value};
 use model_description::{BaseType, Causality, ModelDescription};
 use std::collections::{BTreeMap, BTreeSet};
+use std::path::Path;
 use std::sync::Arc;
 
 /// Variable index (1-based, as in `ModelStructure`) to value reference and type.
@@ -57,6 +58,30 @@ pub(crate) fn variable(
         },
         v.causality(),
     ))
+}
+
+/// Create `<dir>/<component>.trace` with its header (the component's name must be a plain file
+/// name).
+fn start_trace(dir: &Path, c: &Component, md: &ModelDescription) -> Result<Trace, Error> {
+    let name = &c.name;
+    if name.is_empty()
+        || name.starts_with('.')
+        || name.contains(['/', '\\', '\0'])
+        || name.chars().any(char::is_control)
+    {
+        return Err(Error::Load(format!(
+            "--trace: component '{name}': its name cannot be a file name"
+        )));
+    }
+    let path = dir.join(format!("{name}.trace"));
+    let header = [
+        ("unit", name.as_str()),
+        ("source", c.source.as_str()),
+        ("model", md.model_identifier().unwrap_or(&md.model_name)),
+        ("guid", md.guid.as_str()),
+    ];
+    Trace::create(&path, &header)
+        .map_err(|e| Error::Load(format!("--trace: cannot create {}: {e}", path.display())))
 }
 
 /// Output index → input indices, from a list of unknowns (`None` dependencies = every input).
@@ -120,8 +145,9 @@ pub(crate) struct Unit {
 }
 
 impl Unit {
-    /// Check component `c`'s connectors against its FMU and instantiate it.
-    pub(crate) fn load(c: &Component, fmu: Arc<Fmu>) -> Result<Unit, Error> {
+    /// Check component `c`'s connectors against its FMU and instantiate it; with `trace`, a
+    /// directory, every call to the instance is recorded in `<trace>/<component>.trace`.
+    pub(crate) fn load(c: &Component, fmu: Arc<Fmu>, trace: Option<&Path>) -> Result<Unit, Error> {
         let md = &fmu.description;
         let mut reads = Vec::new();
         for k in &c.connectors {
@@ -157,8 +183,12 @@ impl Unit {
                 return Err(Error::Load(format!("component '{}': {e}", c.name)))
             }
         };
+        let trace = match trace {
+            Some(dir) => Some(start_trace(dir, c, md)?),
+            None => None,
+        };
         let inst = fmu
-            .instantiate(&c.name)
+            .instantiate_traced(&c.name, trace)
             .map_err(|e| Error::Load(format!("component '{}': {e}", c.name)))?;
         Ok(Unit {
             local: true,
@@ -521,6 +551,21 @@ impl Unit {
             }
         }
         worst
+    }
+
+    /// Note in the unit's trace, if any, that a communication point at `t` s was recorded with
+    /// the values read last.
+    pub(crate) fn trace_sample(&mut self, t: f64) {
+        if let Some(trace) = self.inst.trace_mut() {
+            trace.sample(t);
+        }
+    }
+
+    /// Flush the unit's trace, if any.
+    pub(crate) fn finish_trace(&mut self) -> Result<(), Error> {
+        self.inst
+            .finish_trace()
+            .map_err(|e| Error::Run(format!("component '{}': {e}", self.name)))
     }
 
     /// Save the unit's state into `states[k]` (made and pushed when there is none yet).

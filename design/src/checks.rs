@@ -4,6 +4,7 @@ use crate::plant::{Adpf, DesignSpec, Frame, Grid, Measurements, OperatingPoint, 
 use crate::synthesis::{brl_matrix, Design};
 use dvpp_control::converter::Lcl;
 use dvpp_control::ss::expm;
+use nalgebra::linalg::Schur;
 use nalgebra::{Complex, DMatrix};
 
 /// Number of values of μ the grid checks use.
@@ -73,7 +74,7 @@ pub fn closed_loop(
 pub fn continuous_abscissa(design: &Design, mu: f64, grid: Grid) -> f64 {
     let (a, _, _) = closed_loop(design, mu, grid);
     let wb = design.spec.omega_b();
-    a.complex_eigenvalues()
+    eigenvalues(&a)
         .iter()
         .map(|l| l.re * wb)
         .fold(f64::NEG_INFINITY, f64::max)
@@ -153,8 +154,7 @@ pub fn frame_mode(design: &Design, mu: f64, grid: Grid, frame: &Frame) -> (f64, 
     k.view_mut((0, 0), (p.b2.ncols(), N_STATES))
         .copy_from(&design.gain(mu));
     let wb = design.spec.omega_b();
-    (&p.a + &p.b2 * k)
-        .complex_eigenvalues()
+    eigenvalues(&(&p.a + &p.b2 * k))
         .iter()
         .map(|l| (l.re * wb, l.im.abs() * wb / (2.0 * std::f64::consts::PI)))
         .fold(
@@ -205,10 +205,33 @@ pub fn worst_frame(design: &Design) -> (f64, f64, f64, Grid, String) {
     worst
 }
 
+/// The eigenvalues of `m`, by the real Schur form with a bounded number of iterations.
+///
+/// nalgebra's `complex_eigenvalues` iterates without bound at machine precision, and its QR
+/// iteration (no exceptional shifts) can cycle without converging: it did, for ever, on a sampled
+/// closed loop of a fresh synthesis with OpenBLAS's Prescott kernel and one thread, at every
+/// tolerance. Here each attempt stops after 10 000 iterations; the next takes the same
+/// eigenvalues from the transpose, then from `D m D⁻¹` with `D` powers of two (exact), which
+/// start the iteration elsewhere, and deflates at a looser tolerance (at most 1e-12 relative to
+/// the neighbouring diagonal entries, far below the checks' margins).
+pub fn eigenvalues(m: &DMatrix<f64>) -> Vec<Complex<f64>> {
+    let n = m.nrows();
+    let scaled = DMatrix::from_fn(n, n, |i, j| {
+        m[(i, j)] * 2f64.powi((i % 3) as i32 - (j % 3) as i32)
+    });
+    for eps in [f64::EPSILON, 1e-14, 1e-12] {
+        for candidate in [m, &m.transpose(), &scaled] {
+            if let Some(s) = Schur::try_new(candidate.clone(), eps, 10_000) {
+                return s.complex_eigenvalues().iter().copied().collect();
+            }
+        }
+    }
+    panic!("the Schur iteration does not converge on a {n}×{n} matrix")
+}
+
 /// The largest eigenvalue magnitude of [`sampled_closed_loop`] at `mu` on `grid`.
 pub fn sampled_radius(design: &Design, mu: f64, grid: Grid) -> f64 {
-    sampled_closed_loop(design, mu, grid)
-        .complex_eigenvalues()
+    eigenvalues(&sampled_closed_loop(design, mu, grid))
         .iter()
         .map(|&l| dvpp_math::cabs(l))
         .fold(0.0, f64::max)
@@ -371,7 +394,7 @@ impl Report {
             worst_real_part: worst(&|mu, g| continuous_abscissa(design, mu, g)),
             fastest_pole: worst(&|mu, g| {
                 let (a, _, _) = closed_loop(design, mu, g);
-                a.complex_eigenvalues()
+                eigenvalues(&a)
                     .iter()
                     .map(|&l| dvpp_math::cabs(l) * design.spec.omega_b())
                     .fold(0.0, f64::max)

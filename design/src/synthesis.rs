@@ -206,3 +206,66 @@ pub fn synthesize(spec: &DesignSpec) -> Result<Design, String> {
         iterations: sol.iterations,
     })
 }
+
+/// The analysis problem for given vertex gains: the smallest `γ` that one common Lyapunov matrix
+/// certifies for `K(μ)`, the linear interpolation of `gains` over `[spec.mu_min, spec.mu_max]`,
+/// on the box of grids — the LMIs of [`synthesize`] with `W_k = K_k X` (affine in `(γ, X)` for
+/// fixed gains). It gives gains that did not come out of this run's synthesis (the committed
+/// file's) the `X` and `W_k` the LMI residuals of [`crate::checks`] need: the solver only finds
+/// the certificate, the residuals verify it without the solver. The gains are not changed.
+pub fn certify(spec: &DesignSpec, gains: &[DMatrix<f64>; 2]) -> Result<Design, String> {
+    let mu = [spec.mu_min, spec.mu_max];
+    let plants: Vec<(usize, Grid, Plant)> = (0..2)
+        .flat_map(|k| {
+            spec.grid_corners()
+                .into_iter()
+                .map(move |g| (k, g, Plant::at(spec, mu[k], g)))
+        })
+        .collect();
+    // γ and X only: no W.
+    let layout = Layout::for_plant(0);
+    let mut lmis: Vec<Lmi> = Vec::new();
+    for (k, grid, plant) in plants.iter() {
+        let gain = &gains[*k];
+        let at = format!(
+            "mu = {}, theta = {}, phi = {}",
+            mu[*k], grid.theta, grid.phi
+        );
+        lmis.push(Lmi {
+            name: format!("bounded-real lemma at {at}"),
+            f: Box::new(move |x: &[f64]| {
+                let lyap = layout.lyapunov(x);
+                brl_matrix(plant, layout.gamma(x), &lyap, &(gain * &lyap))
+            }),
+            margin: MARGIN,
+        });
+        let r = spec.pole_radius;
+        lmis.push(Lmi {
+            name: format!("pole region at {at}"),
+            f: Box::new(move |x: &[f64]| {
+                let lyap = layout.lyapunov(x);
+                disk_matrix(plant, r, &lyap, &(gain * &lyap))
+            }),
+            margin: MARGIN,
+        });
+    }
+    lmis.push(Lmi {
+        name: "X positive definite".into(),
+        f: Box::new(move |x: &[f64]| -layout.lyapunov(x)),
+        margin: MARGIN,
+    });
+    let mut c = vec![0.0; layout.len()];
+    c[0] = 1.0;
+    let sol = minimize(&c, &lmis)?;
+    let lyap = layout.lyapunov(&sol.x);
+    Ok(Design {
+        spec: *spec,
+        mu,
+        gains: gains.clone(),
+        gamma: layout.gamma(&sol.x),
+        w: [&gains[0] * &lyap, &gains[1] * &lyap],
+        lyapunov: lyap,
+        status: sol.status,
+        iterations: sol.iterations,
+    })
+}

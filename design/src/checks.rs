@@ -217,7 +217,7 @@ pub fn worst_frame(design: &Design) -> (f64, f64, f64, Grid, String) {
 pub fn eigenvalues(m: &DMatrix<f64>) -> Vec<Complex<f64>> {
     let n = m.nrows();
     let scaled = DMatrix::from_fn(n, n, |i, j| {
-        m[(i, j)] * 2f64.powi((i % 3) as i32 - (j % 3) as i32)
+        m[(i, j)] * dvpp_math::powi(2.0, (i % 3) as i32 - (j % 3) as i32)
     });
     for eps in [f64::EPSILON, 1e-14, 1e-12] {
         for candidate in [m, &m.transpose(), &scaled] {

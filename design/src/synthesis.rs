@@ -149,16 +149,22 @@ impl Design {
     }
 }
 
-/// Solve the LPV H∞ problem of `spec`.
-pub fn synthesize(spec: &DesignSpec) -> Result<Design, String> {
+/// The plant at each end `k` of μ and each corner of the box of grids: `(k, grid, plant)`.
+fn corner_plants(spec: &DesignSpec) -> Vec<(usize, Grid, Plant)> {
     let mu = [spec.mu_min, spec.mu_max];
-    let plants: Vec<(usize, Grid, Plant)> = (0..2)
+    (0..2)
         .flat_map(|k| {
             spec.grid_corners()
                 .into_iter()
                 .map(move |g| (k, g, Plant::at(spec, mu[k], g)))
         })
-        .collect();
+        .collect()
+}
+
+/// Solve the LPV H∞ problem of `spec`.
+pub fn synthesize(spec: &DesignSpec) -> Result<Design, String> {
+    let mu = [spec.mu_min, spec.mu_max];
+    let plants = corner_plants(spec);
     let layout = Layout::for_plant(2);
     let mut lmis: Vec<Lmi> = Vec::new();
     for (k, grid, plant) in plants.iter() {
@@ -215,13 +221,7 @@ pub fn synthesize(spec: &DesignSpec) -> Result<Design, String> {
 /// the certificate, the residuals verify it without the solver. The gains are not changed.
 pub fn certify(spec: &DesignSpec, gains: &[DMatrix<f64>; 2]) -> Result<Design, String> {
     let mu = [spec.mu_min, spec.mu_max];
-    let plants: Vec<(usize, Grid, Plant)> = (0..2)
-        .flat_map(|k| {
-            spec.grid_corners()
-                .into_iter()
-                .map(move |g| (k, g, Plant::at(spec, mu[k], g)))
-        })
-        .collect();
+    let plants = corner_plants(spec);
     // γ and X only: no W.
     let layout = Layout::for_plant(0);
     let mut lmis: Vec<Lmi> = Vec::new();

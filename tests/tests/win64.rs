@@ -133,18 +133,24 @@ fn inputs_and_outputs(md: &ModelDescription) -> (String, String) {
     (inputs, outputs.join(","))
 }
 
-/// Run a master; its output as one row of values per step (checks the closing "done").
-fn rows(cmd: &mut Command, what: &str) -> Vec<Vec<f64>> {
+/// Run a master to its end; its standard output (checks the exit status and the closing "done").
+fn master_output(cmd: &mut Command, what: &str) -> String {
     let out = cmd
         .output()
         .unwrap_or_else(|e| panic!("{what}: cannot start: {e}"));
-    let stdout = String::from_utf8_lossy(&out.stdout);
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
     assert!(
         out.status.success() && stdout.trim_end().ends_with("done"),
         "{what}: {}\n{}",
         out.status,
         String::from_utf8_lossy(&out.stderr)
     );
+    stdout
+}
+
+/// Run a master; its output as one row of values per step (checks the closing "done").
+fn rows(cmd: &mut Command, what: &str) -> Vec<Vec<f64>> {
+    let stdout = master_output(cmd, what);
     stdout
         .lines()
         .map(str::trim)
@@ -386,16 +392,7 @@ struct Replayed {
 /// A replay's output: the time and the outputs at each `sample` of the trace (as the master
 /// recorded them there); checks the closing "done".
 fn samples(cmd: &mut Command, what: &str, outputs: usize) -> Vec<(f64, Vec<f64>)> {
-    let out = cmd
-        .output()
-        .unwrap_or_else(|e| panic!("{what}: cannot start: {e}"));
-    let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(
-        out.status.success() && stdout.trim_end().ends_with("done"),
-        "{what}: {}\n{}",
-        out.status,
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let stdout = master_output(cmd, what);
     let bits = |h: &str| f64::from_bits(u64::from_str_radix(h, 16).expect("16 hex digits"));
     stdout
         .lines()

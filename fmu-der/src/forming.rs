@@ -152,21 +152,21 @@ impl Der {
         let (r, x) = self.slot_impedance(s);
         let z = Complex::new(r, x);
         let bus = dvpp_math::cpolar(v, v_angle);
-        let internal = dvpp_math::cpolar(f.e, f.theta);
         let r_v = self.virtual_resistance(s);
-        let source = if r_v == 0.0 {
-            internal
+        // The source's magnitude and angle, the angle continuous with the internal one; at
+        // vi.r = 0 the internal voltage itself, not a round trip through rectangular
+        // coordinates (which moves the last bit: a flat start would not stay flat).
+        let (e_source, theta_out) = if r_v == 0.0 {
+            (f.e, f.theta)
         } else {
-            behind_virtual(internal, bus, z, r_v)
+            let source = behind_virtual(dvpp_math::cpolar(f.e, f.theta), bus, z, r_v);
+            (
+                dvpp_math::cabs(source),
+                f.theta + dvpp_math::carg(source * dvpp_math::cpolar(1.0, -f.theta)),
+            )
         };
-        let modulation = dvpp_math::cabs(source) > e_cap;
-        let e_out = dvpp_math::cabs(source).min(e_cap);
-        // Its angle, continuous with the internal one.
-        let theta_out = if r_v == 0.0 {
-            f.theta
-        } else {
-            f.theta + dvpp_math::carg(source * dvpp_math::cpolar(1.0, -f.theta))
-        };
+        let modulation = e_source > e_cap;
+        let e_out = e_source.min(e_cap);
         let wanted = (dvpp_math::cpolar(e_out, theta_out) - bus) / z;
         let u = if v > limits::V_FLOOR {
             bus / v

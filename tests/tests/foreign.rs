@@ -389,16 +389,19 @@ fn an_unknown_element_kind_is_named() {
 #[test]
 fn the_cosim_binary_exits_non_zero_on_a_bad_system() {
     let dir = bad_system("binary", str::to_owned, Some("foreign_lag.fmu"));
+    // Beside the system's directory: an --out inside it is refused before the system is read.
+    let results = dir.with_file_name("binary_out.csv");
+    let _ = std::fs::remove_file(&results);
     let out = Command::new(dvpp_e2e::cosim())
         .arg(&dir)
         .arg("--out")
-        .arg(dir.join("out.csv"))
+        .arg(&results)
         .output()
         .expect("run cosim");
     assert!(!out.status.success(), "cosim succeeded on a bad system");
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_names(&stderr, &["foreign_lag.fmu"]);
-    assert!(!dir.join("out.csv").exists(), "a failed run wrote results");
+    assert!(!results.exists(), "a failed run wrote results");
 }
 
 // ---------------------------------------------------------------------------------------------

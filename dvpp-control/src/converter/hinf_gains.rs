@@ -58,11 +58,11 @@ pub const V0: f64 = 1.0;
 /// Converter-side current at the operating point (d, q).
 pub const I_F0: [f64; 2] = [0.49892103455206727, 0.07316135333968966];
 /// Capacitor voltage at the operating point (d, q).
-pub const V_C0: [f64; 2] = [1.0062220993623472, 0.006487430526073035];
+pub const V_C0: [f64; 2] = [1.0062220993623472, 0.006487430526073028];
 /// Grid-side current at the operating point (d, q).
-pub const I_G0: [f64; 2] = [0.49953215050762334, -0.021624768420243436];
+pub const I_G0: [f64; 2] = [0.49953215050762334, -0.02162476842024344];
 /// Converter voltage at the operating point (d, q).
-pub const V_M0: [f64; 2] = [1.0031635608405018, 0.06210035786019733];
+pub const V_M0: [f64; 2] = [1.0031635608405018, 0.062100357860197325];
 /// Weight of the reactive tracking error.
 pub const W_TRACKING: f64 = 0.05;
 /// Corner (pu of `ω_b`) below which the tracking weight integrates.

@@ -135,9 +135,10 @@ impl Model for DerEmt {
     const IDENTIFIER: &'static str = "dvpp_der_emt";
     const NAME: &'static str = "DVPP DER matching controller, EMT level";
     const DESCRIPTION: &'static str = "DVPP unit at EMT level: the DVPP layer (T_des, ADPFs, dc gains) over cascaded capacitor-voltage and converter-current PI loops (option A) and the dc-voltage control, on instantaneous three-phase measurements";
-    /// EMT steps are 20 to 50 µs; 1 ms (20 times the longest) keeps one call short and the
-    /// held converter voltage meaningful.
-    const MAX_STEP: f64 = 1e-3;
+    /// EMT steps are 20 to 50 µs, and one call costs the same at any step (no inner
+    /// integration); 0.1 s still admits fmpy's `simulate_fmu` on the default experiment, whose
+    /// automatic output interval steps by 16 ms, and refuses what has no meaning here.
+    const MAX_STEP: f64 = 0.1;
 
     fn declare(
         config: &DerConfig,

@@ -19,7 +19,7 @@
 //! one semidefinite program, solved by clarabel.
 
 use crate::plant::{DesignSpec, Grid, Plant, N_DISTURBANCES, N_INPUTS, N_OUTPUTS, N_STATES};
-use crate::sdp::{minimize, Lmi};
+use crate::sdp::{minimize, Lmi, Solution};
 use nalgebra::DMatrix;
 
 /// Strictness margin of the vertex LMIs and of `X ≻ 0`.
@@ -149,6 +149,18 @@ impl Design {
     }
 }
 
+/// Minimize γ (the layout's first variable) subject to `lmis` and `X` positive definite.
+fn minimize_gamma<'a>(layout: Layout, mut lmis: Vec<Lmi<'a>>) -> Result<Solution, String> {
+    lmis.push(Lmi {
+        name: "X positive definite".into(),
+        f: Box::new(move |x: &[f64]| -layout.lyapunov(x)),
+        margin: MARGIN,
+    });
+    let mut c = vec![0.0; layout.len()];
+    c[0] = 1.0;
+    minimize(&c, &lmis)
+}
+
 /// The plant at each end `k` of μ and each corner of the box of grids: `(k, grid, plant)`.
 fn corner_plants(spec: &DesignSpec) -> Vec<(usize, Grid, Plant)> {
     let mu = [spec.mu_min, spec.mu_max];
@@ -186,14 +198,7 @@ pub fn synthesize(spec: &DesignSpec) -> Result<Design, String> {
             margin: MARGIN,
         });
     }
-    lmis.push(Lmi {
-        name: "X positive definite".into(),
-        f: Box::new(move |x: &[f64]| -layout.lyapunov(x)),
-        margin: MARGIN,
-    });
-    let mut c = vec![0.0; layout.len()];
-    c[0] = 1.0;
-    let sol = minimize(&c, &lmis)?;
+    let sol = minimize_gamma(layout, lmis)?;
     let x = &sol.x;
     let lyap = layout.lyapunov(x);
     let inv = lyap
@@ -249,14 +254,7 @@ pub fn certify(spec: &DesignSpec, gains: &[DMatrix<f64>; 2]) -> Result<Design, S
             margin: MARGIN,
         });
     }
-    lmis.push(Lmi {
-        name: "X positive definite".into(),
-        f: Box::new(move |x: &[f64]| -layout.lyapunov(x)),
-        margin: MARGIN,
-    });
-    let mut c = vec![0.0; layout.len()];
-    c[0] = 1.0;
-    let sol = minimize(&c, &lmis)?;
+    let sol = minimize_gamma(layout, lmis)?;
     let lyap = layout.lyapunov(&sol.x);
     Ok(Design {
         spec: *spec,

@@ -30,7 +30,7 @@ const REFERENCE_TAU: f64 = 1e-3;
 
 /// Everything `initialize` builds, and the controller's state.
 #[derive(Clone, Serialize, Deserialize)]
-pub(crate) struct Runtime {
+pub struct Runtime {
     mode: Mode,
     pf: PfReference,
     vq: VqModel,

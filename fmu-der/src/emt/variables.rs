@@ -394,7 +394,6 @@ impl DerEmt {
                 "limit.source",
                 "the primary source is held at a bound of its availability (p_src_min, p_src_max) while the dc command asks for more",
             ),
-            rt: None,
         })
     }
 }

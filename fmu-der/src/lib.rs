@@ -28,13 +28,11 @@
 //! voltage `v_dc` a proportional controller (`k_dc`) holds. The control math is `dvpp_control`.
 
 mod adpf;
-mod codes;
 mod common;
 mod dc;
 pub mod emt;
 mod following;
 mod forming;
-mod layer;
 mod limits;
 pub mod ports;
 mod preset;
@@ -43,17 +41,15 @@ mod step;
 mod unit_vars;
 mod variables;
 
-pub use codes::{AdpfKind, Mode};
+pub use dvpp_controllers::{AdpfKind, Mode, MAX_LPF};
 pub use limits::priority;
 pub use preset::{Preset, Shape, UnitDefaults, PRESETS};
 
-use adpf::AdpfParams;
+use adpf::AdpfVars;
+use dvpp_controllers::layer;
 use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Variables};
 use runtime::Runtime;
 use serde::{Deserialize, Serialize};
-
-/// Most low-pass units a complement unit can close (`mu_p_lpf[1..8]`).
-pub const MAX_LPF: usize = 8;
 
 /// The DER's variable handles and, after initialization, its controller.
 #[derive(Clone, Serialize, Deserialize)]
@@ -69,8 +65,8 @@ pub struct Der {
     tau_q: Real,
     r_f: Real,
     x_f: Real,
-    adpf_p: AdpfParams,
-    adpf_q: AdpfParams,
+    adpf_p: AdpfVars,
+    adpf_q: AdpfVars,
     pll_kp: Real,
     pll_ki: Real,
     pll_tau: Real,
@@ -158,19 +154,19 @@ fn err(name: &str, message: impl std::fmt::Display) -> ModelError {
 }
 
 fn positive(s: &Store, r: Real, name: &str) -> Result<f64, ModelError> {
-    let x = s[r];
-    if x > 0.0 && x.is_finite() && x.is_normal() {
-        Ok(x)
-    } else if x > 0.0 && x.is_finite() {
-        Err(err(
-            name,
-            format!(
-                "= {x:e}: must be > 0 and not subnormal (at least {:e})",
-                f64::MIN_POSITIVE
-            ),
-        ))
-    } else {
-        Err(err(name, format!("= {x}: must be > 0")))
+    dvpp_controllers::positive(s[r], name).map_err(model_error)
+}
+
+/// A controller's error as the FMU reports it (the same text).
+fn model_error(e: dvpp_controllers::Error) -> ModelError {
+    ModelError(e.to_string())
+}
+
+/// A controller's warning or event into the FMU's log.
+fn log(ctx: &mut Context, notice: dvpp_controllers::Notice) {
+    match notice {
+        dvpp_controllers::Notice::Warning(w) => ctx.warn(w),
+        dvpp_controllers::Notice::Event(e) => ctx.event(e),
     }
 }
 

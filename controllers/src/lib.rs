@@ -13,9 +13,12 @@ pub mod adpf;
 mod codes;
 pub mod dc;
 pub mod layer;
+pub mod phasor;
+pub mod unit;
 
 pub use adpf::{AdpfChannel, AdpfParams, ComplementParams};
 pub use codes::{AdpfKind, Mode};
+pub use unit::{DcLinkParams, OperatorGains, PllParams, Rating, SourceParams};
 
 use serde::{Deserialize, Serialize};
 use std::fmt;

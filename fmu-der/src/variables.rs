@@ -2,7 +2,7 @@
 
 use crate::adpf::AdpfVars;
 use crate::unit_vars::{par, tun, DcVars, GainVars, PllVars, SourceVars, UnitVars};
-use crate::{limits, ports, Der, DerConfig, UnitDefaults};
+use crate::{ports, Der, DerConfig, Priority, UnitDefaults};
 use fmi_export::{Spec, Variables};
 
 impl Der {
@@ -115,7 +115,7 @@ impl Der {
         let delay_c = v.real(
             Spec::parameter(
                 "delay.c",
-                crate::forming::DELAY_COMPENSATION,
+                dvpp_controllers::phasor::DELAY_COMPENSATION,
                 "1",
                 "grid-forming: share of the change its own last angle move makes in its (limited) power that the controls add to the measured power, which shows the angle sent one communication step earlier (docs/control.md §7); 0 = off, for a host that answers the angle within the step",
             )
@@ -134,7 +134,7 @@ impl Der {
         let priority = v.integer(
             Spec::parameter(
                 "limit.priority",
-                limits::priority::ACTIVE,
+                Priority::Active.code(),
                 "",
                 "grid-following at I_max: 0 active current kept first, 1 reactive current kept first",
             )

@@ -56,10 +56,6 @@ impl Forming {
             to_rated,
             p_set,
             lpf,
-            v,
-            v_angle,
-            budget,
-            i_max,
             mu_p,
             ..
         } = *at;
@@ -84,32 +80,7 @@ impl Forming {
         // changes of 0.32 pu in a 150 MW load step) before the wind reached its own limit.
         // Rotational control: both channels see p', q' and the set point rotated (the
         // identity at rot.rx = 0).
-        let compensation = {
-            // The limited power at the measured bus voltage, from the node E∠θ.
-            let (r, x) = p.slot_impedance();
-            let z = Complex::new(r, x);
-            let bus = dvpp_math::cpolar(m.v, m.v_angle);
-            let u = if m.v > limits::V_FLOOR {
-                bus / m.v
-            } else {
-                dvpp_math::cpolar(1.0, f.theta)
-            };
-            let budget = rt.dc.ac_budget();
-            let r_v = p.virtual_resistance();
-            let limited = |theta: f64| {
-                let source = if r_v == 0.0 {
-                    dvpp_math::cpolar(out.e, theta)
-                } else {
-                    behind_virtual(dvpp_math::cpolar(f.e, theta), bus, z, r_v)
-                };
-                let wanted = (source - bus) / z;
-                let i = limits::saturate_forming(wanted * to_rated, u, m.v, p.stage.i_max, budget)
-                    .current;
-                (bus * (i / to_rated).conj()).re
-            };
-            let moved = f.dtheta - f.dtheta_mean;
-            p.stage.delay_c * (limited(f.theta) - limited(f.theta - moved))
-        };
+        let compensation = f.delay_compensation(rt, p, m, out.e, to_rated);
         let (p_fb, q_fb) = rt
             .rot
             .rotate(m.p + rt.withheld.0 + compensation, m.q + rt.withheld.1);
@@ -136,6 +107,29 @@ impl Forming {
         rt.q_ref = q_set_rot + rt.vq.step(dv, h) / to_dvpp;
         // Reported as the q at which q' meets its reference at the measured p'.
         out.q_ref = rt.rot.unrotate(p_fb, rt.q_ref).1;
+        Ok(f.output_stage(rt, p, out, at))
+    }
+
+    /// What the converter imposes: the internal voltage within the modulation limit, its
+    /// current within the output stage's limits; what those hold back is withheld.
+    fn output_stage(
+        &self,
+        rt: &mut Common,
+        p: &PhasorParams,
+        out: &mut Held,
+        at: &StepPoint,
+    ) -> Outcome {
+        let f = self;
+        let StepPoint {
+            h,
+            to_dvpp,
+            to_rated,
+            v,
+            v_angle,
+            budget,
+            i_max,
+            ..
+        } = *at;
         // The converter imposes the internal voltage, within the modulation limit; its
         // output stage holds the current within I_max and the active power within the
         // dc link's budget (enforced in the network solution, `i_limit`, `p_min`,
@@ -185,12 +179,50 @@ impl Forming {
         out.e = e_out;
         out.theta = theta_out;
         let request = dvpp_math::cabs(wanted * to_rated) / i_max;
-        Ok(Outcome {
+        Outcome {
             current_limit: lim.current_limit,
             dc_limit: lim.dc_limit,
             request,
             modulation,
-        })
+        }
+    }
+
+    /// The change of the (limited) power that the node's last move of angle makes and the
+    /// measurement does not show yet, times `delay.c`; `e_held` is the magnitude the converter
+    /// imposed over the last step.
+    fn delay_compensation(
+        &self,
+        rt: &Common,
+        p: &PhasorParams,
+        m: &PhasorMeasurement,
+        e_held: f64,
+        to_rated: f64,
+    ) -> f64 {
+        let f = self;
+        // The limited power at the measured bus voltage, from the node E∠θ.
+        let (r, x) = p.slot_impedance();
+        let z = Complex::new(r, x);
+        let bus = dvpp_math::cpolar(m.v, m.v_angle);
+        let u = if m.v > limits::V_FLOOR {
+            bus / m.v
+        } else {
+            dvpp_math::cpolar(1.0, f.theta)
+        };
+        let budget = rt.dc.ac_budget();
+        let r_v = p.virtual_resistance();
+        let limited = |theta: f64| {
+            let source = if r_v == 0.0 {
+                dvpp_math::cpolar(e_held, theta)
+            } else {
+                behind_virtual(dvpp_math::cpolar(f.e, theta), bus, z, r_v)
+            };
+            let wanted = (source - bus) / z;
+            let i =
+                limits::saturate_forming(wanted * to_rated, u, m.v, p.stage.i_max, budget).current;
+            (bus * (i / to_rated).conj()).re
+        };
+        let moved = f.dtheta - f.dtheta_mean;
+        p.stage.delay_c * (limited(f.theta) - limited(f.theta - moved))
     }
 }
 

@@ -122,6 +122,43 @@ impl Channel {
             Channel::Following(_) => Mode::GridFollowing,
         }
     }
+
+    /// The mode's controller for its reference model, at the measurement `m`.
+    fn new(
+        reference: PfReference,
+        p: &PhasorParams,
+        m: &PhasorMeasurement,
+    ) -> Result<Channel, Error> {
+        Ok(match reference {
+            PfReference::Forming(pf) => Channel::Forming(Box::new(Forming {
+                pf,
+                e_int: 0.0,
+                e: 0.0,
+                theta: 0.0,
+                dtheta: 0.0,
+                dtheta_mean: 0.0,
+            })),
+            PfReference::Following(fp) => {
+                let (kp, ki) = (p.pll.kp, p.pll.ki);
+                if !(kp > 0.0 && ki > 0.0) {
+                    return Err(Error::field(
+                        "pll.kp",
+                        format!("PLL gains kp = {kp}, ki = {ki} must be > 0"),
+                    ));
+                }
+                let mut pll = LtiSimulator::new(pll_model(kp, ki, p.rating.f_nom), Hold::Zero);
+                pll.set_state(&[0.0, m.v_angle], m.v_angle)
+                    .expect("PLL state");
+                Channel::Following(Box::new(Following {
+                    fp,
+                    pll,
+                    current: (0.0, 0.0),
+                    dv: 0.0,
+                    gains: (kp, ki),
+                }))
+            }
+        })
+    }
 }
 
 /// The outputs a step may leave as they were (held from the last step that set them).
@@ -157,6 +194,35 @@ fn converter_power(p: &PhasorParams, m: &PhasorMeasurement, r: f64, mode: Mode) 
     (pw + r_loss) * p.rating.s_base / p.rating.s_rated
 }
 
+/// The internal voltage `E∠θ` the controls set and the one the converter imposes, behind the
+/// slot impedance (and a grid-forming unit's virtual resistance) at the operating point `m`; a
+/// unit `waiting` for the voltage follows the terminal voltage.
+fn internal_voltages(
+    p: &PhasorParams,
+    m: &PhasorMeasurement,
+    waiting: bool,
+) -> ((f64, f64), (f64, f64)) {
+    // The internal voltage behind the transformer (the slot impedance).
+    let (r, x) = p.slot_impedance();
+    let (pw, q, v) = (m.p, m.q, m.v);
+    // A grid-forming unit's controls set the voltage behind its virtual resistance too.
+    let r_v = match p.mode {
+        Mode::GridForming => p.virtual_resistance(),
+        Mode::GridFollowing => 0.0,
+    };
+    let (e0, theta0) = if waiting {
+        (v, m.v_angle)
+    } else {
+        internal_voltage(pw, q, v, m.v_angle, r + r_v, x)
+    };
+    let (e_out, theta_out) = if waiting || r_v == 0.0 {
+        (e0, theta0)
+    } else {
+        internal_voltage(pw, q, v, m.v_angle, r, x)
+    };
+    ((e0, theta0), (e_out, theta_out))
+}
+
 impl PhasorUnit {
     /// The unit at the measured operating point `m`, taken as a steady state (its time `m.t` is
     /// when the availability profile is read), with the operator's gains `gains`, and its
@@ -189,35 +255,7 @@ impl PhasorUnit {
             pll_tau,
             pll_order: p.pll.order,
         })?;
-        let mut channel = match reference {
-            PfReference::Forming(pf) => Channel::Forming(Box::new(Forming {
-                pf,
-                e_int: 0.0,
-                e: 0.0,
-                theta: 0.0,
-                dtheta: 0.0,
-                dtheta_mean: 0.0,
-            })),
-            PfReference::Following(fp) => {
-                let (kp, ki) = (p.pll.kp, p.pll.ki);
-                if !(kp > 0.0 && ki > 0.0) {
-                    return Err(Error::field(
-                        "pll.kp",
-                        format!("PLL gains kp = {kp}, ki = {ki} must be > 0"),
-                    ));
-                }
-                let mut pll = LtiSimulator::new(pll_model(kp, ki, p.rating.f_nom), Hold::Zero);
-                pll.set_state(&[0.0, m.v_angle], m.v_angle)
-                    .expect("PLL state");
-                Channel::Following(Box::new(Following {
-                    fp,
-                    pll,
-                    current: (0.0, 0.0),
-                    dv: 0.0,
-                    gains: (kp, ki),
-                }))
-            }
-        };
+        let mut channel = Channel::new(reference, p, m)?;
         let dc = p.dc_params()?;
         positive(p.stage.i_max, "I_max")?;
         positive(p.qpi.e_max, "E_max")?;
@@ -232,26 +270,11 @@ impl PhasorUnit {
             )));
         }
 
-        // Operating point and the internal voltage behind the transformer (the slot impedance).
-        let (r, x) = p.slot_impedance();
-        let (pw, q, v) = (m.p, m.q, m.v);
         // Below `startup.v_sync` the unit waits for the voltage (a start from zero voltage).
+        let (pw, q, v) = (m.p, m.q, m.v);
         let waiting = v < p.startup.v_sync;
-        // A grid-forming unit's controls set the voltage behind its virtual resistance too.
-        let r_v = match mode {
-            Mode::GridForming => p.virtual_resistance(),
-            Mode::GridFollowing => 0.0,
-        };
-        let (e0, theta0) = if waiting {
-            (v, m.v_angle)
-        } else {
-            internal_voltage(pw, q, v, m.v_angle, r + r_v, x)
-        };
-        let (e_out, theta_out) = if waiting || r_v == 0.0 {
-            (e0, theta0)
-        } else {
-            internal_voltage(pw, q, v, m.v_angle, r, x)
-        };
+        let ((e0, theta0), (e_out, theta_out)) = internal_voltages(p, m, waiting);
+        let (r, _) = p.slot_impedance();
         let p_ac = if waiting {
             0.0
         } else {

@@ -21,8 +21,9 @@
 //! first step of `t_s`.
 
 mod params;
+pub mod trajectory;
 
-pub use params::{EmtParams, FilterParams, InnerKind, QPiParams};
+pub use params::{EmtParams, FilterParams, InnerKind, ParamValue, QPiParams};
 
 use crate::dc::damping_gain;
 use crate::layer::{self, PfReference};

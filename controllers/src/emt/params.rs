@@ -163,3 +163,85 @@ impl EmtParams {
         p
     }
 }
+
+/// A parameter's value as a host sets it by name (the FMU's types: Real, Integer, Boolean).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum ParamValue {
+    Real(f64),
+    Integer(i32),
+    Boolean(bool),
+}
+
+impl EmtParams {
+    /// Every parameter with the name the `dvpp_der_emt` FMU gives it, in the FMU's order of
+    /// declaration: what a host sets to run the FMU as this unit.
+    pub fn named(&self) -> Vec<(String, ParamValue)> {
+        use ParamValue::{Boolean, Integer, Real};
+        let mut out: Vec<(String, ParamValue)> = Vec::new();
+        let mut put = |name: &str, v: ParamValue| out.push((name.to_string(), v));
+        let r = &self.rating;
+        put("S_rated", Real(r.s_rated));
+        put("S_base", Real(r.s_base));
+        put("S_dvpp", Real(r.s_dvpp));
+        put("f_nom", Real(r.f_nom));
+        put("mode", Integer(self.mode.code()));
+        put("Tdes.H", Real(self.tdes.h));
+        put("Tdes.D", Real(self.tdes.d));
+        put("Tdes.Dq", Real(self.tdes.dq));
+        put("Tdes.tau_q", Real(self.tdes.tau_q));
+        for a in [&self.adpf_p, &self.adpf_q] {
+            let n = |field: &str| a.name(field);
+            put(&n("kind"), Integer(a.kind.code()));
+            put(&n("tau"), Real(a.tau));
+            put(&n("tau2"), Real(a.tau2));
+            put(&n("order"), Integer(a.order as i32));
+            put(&n("order2"), Integer(a.order2 as i32));
+            if let Some(c) = &a.complement {
+                put(&n("share"), Real(c.share));
+                put(&n("n_lpf"), Integer(c.n_lpf as i32));
+                for k in 0..c.lpf_tau.len() {
+                    put(&n(&format!("lpf[{}].tau", k + 1)), Real(c.lpf_tau[k]));
+                    put(
+                        &n(&format!("lpf[{}].order", k + 1)),
+                        Integer(c.lpf_order[k] as i32),
+                    );
+                }
+            }
+        }
+        put("pll.kp", Real(self.pll.kp));
+        put("pll.ki", Real(self.pll.ki));
+        put("pll.tau", Real(self.pll.tau));
+        put("pll.order", Integer(self.pll.order as i32));
+        put("qpi.kp", Real(self.qpi.kp));
+        put("qpi.ki", Real(self.qpi.ki));
+        put("E_max", Real(self.qpi.e_max));
+        put("vq.tau", Real(self.vq_tau));
+        let f = &self.filter;
+        put("R_f", Real(f.r_f));
+        put("L_f", Real(f.l_f));
+        put("C_f", Real(f.c_f));
+        put("R_t", Real(f.r_t));
+        put("L_t", Real(f.l_t));
+        put("vdc_ratio", Real(self.vdc_ratio));
+        put("vi.r", Real(self.vi_r));
+        put("inner.current_hz", Real(self.inner.current_hz));
+        put("inner.voltage_hz", Real(self.inner.voltage_hz));
+        put("inner.zero_ratio", Real(self.inner.zero_ratio));
+        put("I_max", Real(self.inner.i_max));
+        put("t_s", Real(self.t_s));
+        let d = &self.dc;
+        put("tau_dc", Real(d.tau_dc));
+        put("C_dc", Real(d.c_dc));
+        put("G_dc", Real(d.g_dc));
+        put("k_dc", Real(d.k_dc));
+        put("dc.zeta", Real(d.zeta));
+        let s = &self.source;
+        put("storage", Boolean(s.storage));
+        put("deload", Real(s.deload));
+        put("P_avail0", Real(s.p_avail0));
+        put("avail.t_step", Real(s.avail_t));
+        put("avail.dP", Real(s.avail_dp));
+        put("inner.kind", Integer(self.inner_kind.code()));
+        out
+    }
+}

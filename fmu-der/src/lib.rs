@@ -129,8 +129,6 @@ pub struct Der {
     rot_rx: Real,
     p_rot: Real,
     q_rot: Real,
-    /// Boxed: each step takes it out and puts it back, which moves only the pointer.
-    rt: Option<Box<Runtime>>,
 }
 
 /// Structure of the DER: which of the paper's units it is.
@@ -174,6 +172,7 @@ fn log(ctx: &mut Context, notice: dvpp_controllers::Notice) {
 
 impl Model for Der {
     type Config = DerConfig;
+    type State = Runtime;
     const IDENTIFIER: &'static str = "dvpp_der";
     const NAME: &'static str = "DVPP DER matching controller";
     const DESCRIPTION: &'static str = "DVPP unit, grid-forming (df = -T_pf/m_p dp) or grid-following (dp = -m_p T_pf^-1 df), with ADPFs, dc side and rating limits";
@@ -188,25 +187,26 @@ impl Model for Der {
         Der::declare_variables(config, v)
     }
 
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
+    fn initialize(
+        &self,
+        previous: Option<&Runtime>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<Runtime, ModelError> {
         // Initialization may run several times in initialization mode; a warning already given
-        // in this episode is not repeated (a reset starts a new episode with `rt` = None).
-        let again = self.rt.take().map(|rt| rt.common.warned_gains);
-        self.rt = Some(Box::new(self.build(s, ctx, again)?));
-        Ok(())
+        // in this episode is not repeated.
+        self.build(s, ctx, previous.map(|rt| rt.common.warned_gains))
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        rt: &mut Runtime,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        let mut rt = self.rt.take().ok_or("the DER is not initialized")?;
-        let result = self.step(&mut rt, s, t, h, ctx);
-        self.rt = Some(rt);
-        result
+        self.step(rt, s, t, h, ctx)
     }
 }
 

@@ -20,7 +20,7 @@ pub(crate) enum Channel {
 
 /// Everything `initialize` builds from the parameters.
 #[derive(Clone, Serialize, Deserialize)]
-pub(crate) struct Runtime {
+pub struct Runtime {
     pub(crate) channel: Channel,
     pub(crate) common: Common,
 }

@@ -413,7 +413,6 @@ impl Der {
                 )
                 .initial_dependencies(&[ports::P, ports::Q]),
             ),
-            rt: None,
         })
     }
 }

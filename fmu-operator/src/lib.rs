@@ -544,6 +544,7 @@ impl Pocs {
 }
 
 impl Model for Operator {
+    type State = Operator;
     type Config = OperatorConfig;
     const IDENTIFIER: &'static str = "dvpp_operator";
     const NAME: &'static str = "DVPP operator";
@@ -785,7 +786,31 @@ impl Model for Operator {
         Ok(op)
     }
 
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
+    fn initialize(
+        &self,
+        _: Option<&Operator>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<Operator, ModelError> {
+        let mut op = self.clone();
+        op.start(s, ctx)?;
+        Ok(op)
+    }
+
+    fn do_step(
+        &self,
+        op: &mut Operator,
+        s: &mut Store,
+        t: f64,
+        h: f64,
+        ctx: &mut Context,
+    ) -> Result<(), ModelError> {
+        op.advance(s, t, h, ctx)
+    }
+}
+
+impl Operator {
+    fn start(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
         for (name, r) in [("rate_limit", self.rate_limit), ("delay", self.delay)] {
             if s[r] < 0.0 {
                 return Err(format!("parameter '{name}' = {} must not be negative", s[r]).into());
@@ -819,7 +844,7 @@ impl Model for Operator {
         Ok(())
     }
 
-    fn do_step(
+    fn advance(
         &mut self,
         s: &mut Store,
         t: f64,

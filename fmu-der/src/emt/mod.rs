@@ -54,10 +54,8 @@ use dvpp_controllers::emt::{
     EmtCommand, EmtMeasurement, EmtParams, EmtUnit, FilterParams, InnerKind, QPiParams,
 };
 use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Variables};
-use serde::{Deserialize, Serialize};
 
-/// The EMT-level controller's variable handles and, after initialization, the unit.
-#[derive(Clone, Serialize, Deserialize)]
+/// The EMT-level controller's variable handles (its running state is the unit, `EmtUnit`).
 pub struct DerEmt {
     unit: UnitVars,
     adpf_p: AdpfVars,
@@ -83,11 +81,9 @@ pub struct DerEmt {
     out: Outputs,
     /// Option A (0) or B (1) for the grid-forming v-q matching.
     inner_kind: Integer,
-    rt: Option<Box<EmtUnit>>,
 }
 
 /// The command's variables.
-#[derive(Clone, Serialize, Deserialize)]
 struct Outputs {
     m_abc: [Real; 3],
     i_dc_ref: Real,
@@ -206,6 +202,7 @@ impl DerEmt {
 
 impl Model for DerEmt {
     type Config = DerConfig;
+    type State = EmtUnit;
     const IDENTIFIER: &'static str = "dvpp_der_emt";
     const NAME: &'static str = "DVPP DER matching controller, EMT level";
     const DESCRIPTION: &'static str = "DVPP unit at EMT level: the DVPP layer (T_des, ADPFs, dc gains) over cascaded capacitor-voltage and converter-current PI loops (option A) and the dc-voltage control, on instantaneous three-phase measurements";
@@ -223,28 +220,30 @@ impl Model for DerEmt {
     }
 
     /// The unit at the measured operating point; the availability profile is read at t = 0.
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
+    fn initialize(
+        &self,
+        _: Option<&EmtUnit>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<EmtUnit, ModelError> {
         let m = self.measurement(s, 0.0);
         let (unit, command) = EmtUnit::initialize(&self.params(s)?, &m, &self.gains.read(s))?;
         self.write(s, command, ctx);
-        self.rt = Some(Box::new(unit));
-        Ok(())
+        Ok(unit)
     }
 
+    /// The tunable parameters as they are now, then one sample.
     fn do_step(
-        &mut self,
+        &self,
+        unit: &mut EmtUnit,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        let mut unit = self.rt.take().ok_or("the controller is not initialized")?;
-        let result = self.params(s).and_then(|p| {
-            unit.retune(&p)?;
-            Ok(unit.step(&self.measurement(s, t), &self.gains.read(s), h)?)
-        });
-        self.rt = Some(unit);
-        self.write(s, result?, ctx);
+        unit.retune(&self.params(s)?)?;
+        let command = unit.step(&self.measurement(s, t), &self.gains.read(s), h)?;
+        self.write(s, command, ctx);
         Ok(())
     }
 }

@@ -336,7 +336,6 @@ impl DerEmt {
                 limit,
             },
             inner_kind,
-            rt: None,
         })
     }
 }

@@ -1,4 +1,4 @@
-//! The host-conformance test of the EMT-level unit: reference trajectories of `EmtUnit` in closed loop with the EMT plant's circuit (stiff grid, weak grid, island; options A and B, grid-forming and grid-following), replayed through `EmtUnit` bit for bit.
+//! The host-conformance test of the EMT-level unit: reference trajectories of `EmtUnit` in closed loop with the EMT plant's circuit (stiff grid, weak grid, island; options A and B), replayed through `EmtUnit` bit for bit; and the unit's contracts with a host (its state saved and restored, parameters refused by name, retuning).
 //!
 //! Each case's trajectory (tests/conformance/NAME.txt, format in
 //! `dvpp_controllers::emt::trajectory`) holds every input the unit received and every output it
@@ -442,4 +442,110 @@ fn a_differing_replay_names_the_step_and_the_output() {
 fn a_trajectory_reads_back_as_written() {
     let t = load(&CASES[2]);
     assert_eq!(Trajectory::parse(&t.to_text()), Ok(t));
+}
+
+/// The unit's state saved mid-run (serialized, as an FMU state is) and restored continues bit
+/// for bit as the unit that was not saved.
+#[test]
+fn the_unit_saved_and_restored_continues_bit_for_bit() {
+    let case = &CASES[3];
+    let t = load(case);
+    let (mut unit, _) =
+        EmtUnit::initialize(&case.params(), &t.init_measurement(), &t.gains).expect("initialize");
+    for k in 1..=1000 {
+        unit.step(&t.measurement(k), &t.gains, H).expect("step");
+    }
+    let bytes = postcard::to_stdvec(&unit).expect("serialize");
+    let mut restored: EmtUnit = postcard::from_bytes(&bytes).expect("deserialize");
+    let mut cloned = unit.clone();
+    for k in 1001..=t.steps.len() {
+        let want = unit.step(&t.measurement(k), &t.gains, H).expect("step");
+        for other in [&mut restored, &mut cloned] {
+            let got = other.step(&t.measurement(k), &t.gains, H).expect("step");
+            assert_eq!(
+                got.outputs().map(f64::to_bits),
+                want.outputs().map(f64::to_bits),
+                "step {k}"
+            );
+        }
+    }
+}
+
+/// Parameters are refused with the FMU's name of the one at fault.
+#[test]
+fn parameters_are_refused_by_name() {
+    let m = load(&CASES[0]).init_measurement();
+    let refused = |change: &dyn Fn(&mut EmtParams)| {
+        let mut p = unit_params(Mode::GridForming, InnerKind::OptionA);
+        change(&mut p);
+        EmtUnit::initialize(&p, &m, &GAINS)
+            .map(drop)
+            .expect_err("refused")
+            .to_string()
+    };
+    assert_eq!(refused(&|p| p.filter.l_f = 0.0), "'L_f' = 0: must be > 0");
+    assert_eq!(
+        refused(&|p| p.inner.i_max = -1.0),
+        "'I_max' = -1: must be > 0"
+    );
+    assert_eq!(
+        refused(&|p| {
+            p.adpf_p.kind = AdpfKind::LowPass;
+            p.adpf_p.tau = 0.0;
+        }),
+        "'adpf.p.tau' = 0: must be > 0"
+    );
+    assert!(refused(&|p| p.tdes.d = 0.0).starts_with("'Tdes.D' = 0"));
+    assert!(refused(&|p| p.pll.tau = f64::NAN).starts_with("'pll.tau' = NaN"));
+    assert!(refused(&|p| {
+        p.mode = Mode::GridFollowing;
+        p.inner_kind = InnerKind::OptionB;
+    })
+    .starts_with("'inner.kind' = 1 (option B"));
+    assert_eq!(
+        InnerKind::from_code(2).unwrap_err().to_string(),
+        "'inner.kind' = 2: must be 0 or 1"
+    );
+    // A measurement of no voltage: the unit starts from a running converter.
+    let mut dead = m;
+    dead.v_c = Abc::default();
+    let e = EmtUnit::initialize(
+        &unit_params(Mode::GridForming, InnerKind::OptionA),
+        &dead,
+        &GAINS,
+    )
+    .map(drop)
+    .expect_err("no voltage");
+    assert_eq!(e.field, None);
+    assert!(e.message.contains("capacitor voltage"), "{e}");
+}
+
+/// `retune` takes the tunable parameters (the inner loops are redesigned at the next step, with
+/// an event) and keeps the fixed ones; a design of no bandwidth is refused by name.
+#[test]
+fn retune_takes_the_tunable_parameters_only() {
+    let t = load(&CASES[0]);
+    let p = unit_params(Mode::GridForming, InnerKind::OptionA);
+    let (mut unit, _) = EmtUnit::initialize(&p, &t.init_measurement(), &t.gains).expect("init");
+    let mut new = p;
+    new.inner.current_hz = 600.0;
+    new.filter.r_f = 0.5;
+    new.source.deload = 0.5;
+    unit.retune(&new).expect("retune");
+    assert_eq!(unit.params().inner.current_hz, 600.0);
+    assert_eq!(unit.params().source.deload, 0.5);
+    assert_eq!(unit.params().filter.r_f, p.filter.r_f, "R_f is fixed");
+    let c = unit.step(&t.measurement(1), &t.gains, H).expect("step");
+    assert!(
+        matches!(c.notices.as_slice(), [dvpp_controllers::Notice::Event(e)] if e.contains("retuned")),
+        "{:?}",
+        c.notices
+    );
+    let c = unit.step(&t.measurement(2), &t.gains, H).expect("step");
+    assert!(c.notices.is_empty());
+    new.inner.voltage_hz = 0.0;
+    assert_eq!(
+        unit.retune(&new).unwrap_err().to_string(),
+        "'inner.voltage_hz' = 0: must be > 0"
+    );
 }

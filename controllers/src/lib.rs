@@ -12,6 +12,7 @@
 pub mod adpf;
 mod codes;
 pub mod dc;
+pub mod emt;
 pub mod layer;
 pub mod phasor;
 pub mod unit;

@@ -21,7 +21,7 @@ pub use dvpp_controllers::{AdpfKind, Mode, MAX_LPF};
 pub use preset::{Preset, Shape, UnitDefaults, PRESETS};
 
 use adpf::AdpfVars;
-use dvpp_controllers::layer::{self, TDesParams};
+use dvpp_controllers::layer::TDesParams;
 use dvpp_controllers::phasor::{
     DcRange, OutputStage, PhasorCommand, PhasorMeasurement, PhasorParams, PhasorUnit, QPiParams,
     SlotImpedance, StartupParams,
@@ -130,15 +130,6 @@ fn err(name: &str, message: impl std::fmt::Display) -> ModelError {
     let message = message.to_string();
     let sep = if message.starts_with('=') { " " } else { ": " };
     ModelError(format!("'{name}'{sep}{message}"))
-}
-
-fn positive(s: &Store, r: Real, name: &str) -> Result<f64, ModelError> {
-    dvpp_controllers::positive(s[r], name).map_err(model_error)
-}
-
-/// A controller's error as the FMU reports it (the same text).
-fn model_error(e: dvpp_controllers::Error) -> ModelError {
-    ModelError(e.to_string())
 }
 
 /// A controller's warning or event into the FMU's log.

@@ -21,45 +21,28 @@ pub use dvpp_controllers::{AdpfKind, Mode, MAX_LPF};
 pub use preset::{Preset, Shape, UnitDefaults, PRESETS};
 
 use adpf::AdpfVars;
-use dvpp_controllers::layer::TDesParams;
 use dvpp_controllers::phasor::{
     DcRange, OutputStage, PhasorCommand, PhasorMeasurement, PhasorParams, PhasorUnit, QPiParams,
     SlotImpedance, StartupParams,
 };
-use dvpp_controllers::{DcLinkParams, OperatorGains, PllParams, Rating, SourceParams};
 use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Variables};
 use serde::{Deserialize, Serialize};
+use unit_vars::{DcVars, GainVars, PllVars, SourceVars, UnitVars};
 
 /// The DER's variable handles and, after initialization, its controller.
 #[derive(Clone, Serialize, Deserialize)]
 pub struct Der {
-    mode: Integer,
-    s_rated: Real,
-    s_base: Real,
-    s_dvpp: Real,
-    f_nom: Real,
-    h: Real,
-    d: Real,
-    dq: Real,
-    tau_q: Real,
+    /// Rating and bases, mode, `T_des`.
+    unit: UnitVars,
     r_f: Real,
     x_f: Real,
     adpf_p: AdpfVars,
     adpf_q: AdpfVars,
-    pll_kp: Real,
-    pll_ki: Real,
-    pll_tau: Real,
-    pll_order: Integer,
+    pll: PllVars,
     qpi_kp: Real,
     qpi_ki: Real,
     e_max: Real,
-    tau_dc: Real,
-    c_dc: Real,
-    g_dc: Real,
-    storage: Boolean,
-    deload: Real,
-    k_dc: Real,
-    dc_zeta: Real,
+    dc: DcVars,
     v_dc_min: Real,
     v_dc_max: Real,
     t_budget: Real,
@@ -72,17 +55,14 @@ pub struct Der {
     v_sync: Real,
     t_hold: Real,
     ramp: Real,
-    p_avail0: Real,
-    avail_t: Real,
-    avail_dp: Real,
+    source: SourceVars,
     redispatch: Real,
     p: Real,
     q: Real,
     v: Real,
     v_angle: Real,
-    mu_p: Real,
-    mu_q: Real,
-    mu_p_lpf: Vec<Real>,
+    /// The operator's dc gains.
+    gains: GainVars,
     theta: Real,
     e: Real,
     df: Real,
@@ -145,51 +125,24 @@ impl Der {
     /// `limit.priority`) is refused by name.
     fn params(&self, s: &Store) -> Result<PhasorParams, ModelError> {
         Ok(PhasorParams {
-            rating: Rating {
-                s_rated: s[self.s_rated],
-                s_base: s[self.s_base],
-                s_dvpp: s[self.s_dvpp],
-                f_nom: s[self.f_nom],
-            },
-            mode: Mode::from_code(s[self.mode]).map_err(|e| err("mode", e))?,
-            tdes: TDesParams {
-                h: s[self.h],
-                d: s[self.d],
-                dq: s[self.dq],
-                tau_q: s[self.tau_q],
-            },
+            rating: self.unit.rating(s),
+            mode: self.unit.mode(s)?,
+            tdes: self.unit.tdes(s),
             slot: SlotImpedance {
                 r_f: s[self.r_f],
                 x_f: s[self.x_f],
             },
             adpf_p: self.adpf_p.read(s)?,
             adpf_q: self.adpf_q.read(s)?,
-            pll: PllParams {
-                kp: s[self.pll_kp],
-                ki: s[self.pll_ki],
-                tau: s[self.pll_tau],
-                order: s[self.pll_order] as u32,
-            },
+            pll: self.pll.read(s),
             qpi: self.qpi(s),
-            dc: DcLinkParams {
-                tau_dc: s[self.tau_dc],
-                c_dc: s[self.c_dc],
-                g_dc: s[self.g_dc],
-                k_dc: s[self.k_dc],
-                zeta: s[self.dc_zeta],
-            },
+            dc: self.dc.read(s),
             dc_range: DcRange {
                 v_min: s[self.v_dc_min],
                 v_max: s[self.v_dc_max],
                 t_budget: s[self.t_budget],
             },
-            source: SourceParams {
-                storage: s[self.storage],
-                deload: s[self.deload],
-                p_avail0: s[self.p_avail0],
-                avail_t: s[self.avail_t],
-                avail_dp: s[self.avail_dp],
-            },
+            source: self.source.read(s),
             stage: self.stage(s)?,
             vi_r: s[self.vi_r],
             startup: StartupParams {
@@ -222,14 +175,15 @@ impl Der {
 
     /// The tunable parameters into the running unit.
     fn retune(&self, unit: &mut PhasorUnit, s: &Store) -> Result<(), ModelError> {
-        unit.set_pll_gains(s[self.pll_kp], s[self.pll_ki]);
+        let (pll, source) = (self.pll.read(s), self.source.read(s));
+        unit.set_pll_gains(pll.kp, pll.ki);
         unit.set_voltage_matching(self.qpi(s));
         unit.set_output_stage(self.stage(s)?);
         unit.set_availability(
-            s[self.deload],
-            s[self.p_avail0],
-            s[self.avail_t],
-            s[self.avail_dp],
+            source.deload,
+            source.p_avail0,
+            source.avail_t,
+            source.avail_dp,
         );
         unit.set_redispatch(s[self.redispatch]);
         Ok(())
@@ -242,18 +196,6 @@ impl Der {
             q: s[self.q],
             v: s[self.v],
             v_angle: s[self.v_angle],
-        }
-    }
-
-    fn gains(&self, s: &Store) -> OperatorGains {
-        let mut mu_p_lpf = [0.0; MAX_LPF];
-        for (o, &r) in mu_p_lpf.iter_mut().zip(&self.mu_p_lpf) {
-            *o = s[r];
-        }
-        OperatorGains {
-            mu_p: s[self.mu_p],
-            mu_q: s[self.mu_q],
-            mu_p_lpf,
         }
     }
 
@@ -325,7 +267,7 @@ impl Model for Der {
     ) -> Result<PhasorUnit, ModelError> {
         let m = self.measurement(s, 0.0);
         let (unit, command) =
-            PhasorUnit::initialize(&self.params(s)?, &m, &self.gains(s), previous)?;
+            PhasorUnit::initialize(&self.params(s)?, &m, &self.gains.read(s), previous)?;
         self.write(s, command, ctx);
         Ok(unit)
     }
@@ -339,7 +281,7 @@ impl Model for Der {
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
         self.retune(unit, s)?;
-        let command = unit.step(&self.measurement(s, t), &self.gains(s), h)?;
+        let command = unit.step(&self.measurement(s, t), &self.gains.read(s), h)?;
         self.write(s, command, ctx);
         Ok(())
     }

@@ -29,7 +29,7 @@ use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Vari
 use serde::{Deserialize, Serialize};
 use unit_vars::{DcVars, GainVars, PllVars, SourceVars, UnitVars};
 
-/// The DER's variable handles and, after initialization, its controller.
+/// The DER's variable handles; its running state (`Model::State`) is the [`PhasorUnit`].
 #[derive(Clone, Serialize, Deserialize)]
 pub struct Der {
     /// Rating and bases, mode, `T_des`.

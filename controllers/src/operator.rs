@@ -40,6 +40,8 @@ use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::fmt;
 
+use crate::{Error, Notice};
+
 /// The ADPF shape of a DER's p-f channel, as far as the operator cares.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -142,110 +144,60 @@ impl Default for Params {
     }
 }
 
-/// Why the operator refuses its parameters, a measurement, or cannot compute gains.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Error {
-    /// The structure: the units (`[model] ders`), the number of POCs, the rotation.
-    Structure {
-        /// The field as the FMU's `[model]` table names it (`ders`, `ders[2]`, `pocs`, `rot_rx`).
-        field: String,
-        reason: String,
-    },
-    /// A parameter's value.
-    Parameter {
-        /// The parameter as the FMU names it (`Tdes.H`, `der[2].S_rated`, `delay`, ...).
-        field: String,
-        reason: String,
-    },
-    /// A measurement that does not fit the parameters or is not a number.
-    Measurement {
-        /// The input as the FMU names it (`pcc.p`, `der[1].P_avail`, `poc[2].q`, ...), or the
-        /// list whose length is off (`der`, `poc`).
-        field: String,
-        reason: String,
-    },
-    /// The gains of a channel (`active`, `reactive`) could not be computed.
-    Gains {
-        channel: &'static str,
-        reason: String,
-    },
-}
-
-impl fmt::Display for Error {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Error::Structure { field, reason } => write!(f, "[model] {field}: {reason}"),
-            Error::Parameter { field, reason } => write!(f, "parameter '{field}': {reason}"),
-            Error::Measurement { field, reason } => write!(f, "input '{field}': {reason}"),
-            Error::Gains { channel, reason } => write!(f, "{channel} dc gains: {reason}"),
-        }
-    }
-}
-
-impl std::error::Error for Error {}
-
-fn structure(field: impl Into<String>, reason: String) -> Error {
-    Error::Structure {
-        field: field.into(),
-        reason,
-    }
-}
-
-fn parameter(field: impl Into<String>, reason: String) -> Error {
-    Error::Parameter {
-        field: field.into(),
-        reason,
-    }
+/// An error naming `field` (of the `[model]` table, or a parameter or input as the FMU names it).
+fn named(field: impl AsRef<str>, message: impl fmt::Display) -> Error {
+    Error::field(field.as_ref(), message)
 }
 
 impl Params {
-    /// The structure alone (what an FMU's variables depend on, its `[model]` table): at least
-    /// one unit, each with a positive rating and a share in (0, 1], a low-pass unit, at most
-    /// [`MAX_POCS`] POCs, and a valid rotation, only where there are POCs.
+    /// The structure alone (what an FMU's variables depend on, its `[model]` table, whose
+    /// fields the errors name: `ders`, `ders[k].s_rated`, `ders[k].share`, `pocs`, `rot_rx`):
+    /// at least one unit, each with a positive rating and a share in (0, 1], a low-pass unit,
+    /// at most [`MAX_POCS`] POCs, and a valid rotation, only where there are POCs.
     pub fn check_structure(&self) -> Result<(), Error> {
+        for (k, u) in self.units.iter().enumerate() {
+            if !(u.s_rated.is_finite() && u.s_rated > 0.0) {
+                return Err(named(
+                    format!("ders[{}].s_rated", k + 1),
+                    format!("= {} ({}): must be positive", u.s_rated, u.name),
+                ));
+            }
+        }
         self.check_units_and_pocs()?;
-        Rotation::from_rx(self.rot_rx).map_err(|e| structure("rot_rx", e.to_string()))?;
+        Rotation::from_rx(self.rot_rx).map_err(|e| named("rot_rx", e))?;
         if self.rot_rx != 0.0 && self.pocs == 0 {
-            return Err(structure(
-                format!("rot_rx = {}", self.rot_rx),
-                "the rotation applies to the POC powers, but pocs = 0".into(),
+            return Err(named(
+                "rot_rx",
+                format!(
+                    "= {}: the rotation applies to the POC powers, but pocs = 0",
+                    self.rot_rx
+                ),
             ));
         }
         Ok(())
     }
 
+    /// What [`Params::check_structure`] checks but the ratings and the rotation (which are
+    /// parameters once running).
     fn check_units_and_pocs(&self) -> Result<(), Error> {
         if self.units.is_empty() {
-            return Err(structure(
-                "ders",
-                "no entries, expected at least one DER".into(),
-            ));
+            return Err(named("ders", "no entries, expected at least one DER"));
         }
         for (k, u) in self.units.iter().enumerate() {
-            let at = format!("ders[{}] '{}'", k + 1, u.name);
-            if !(u.s_rated.is_finite() && u.s_rated > 0.0) {
-                return Err(structure(
-                    at,
-                    format!("s_rated = {} must be positive", u.s_rated),
-                ));
-            }
             if !(u.share > 0.0 && u.share <= 1.0) {
-                return Err(structure(
-                    at,
-                    format!("share = {} must be in (0, 1]", u.share),
+                return Err(named(
+                    format!("ders[{}].share", k + 1),
+                    format!("= {} ({}): must be in (0, 1]", u.share, u.name),
                 ));
             }
         }
         if !self.units.iter().any(|u| u.role == Role::LowPass) {
-            return Err(structure(
-                "ders",
-                "no low-pass unit carries the steady state".into(),
-            ));
+            return Err(named("ders", "no low-pass unit carries the steady state"));
         }
         if self.pocs > MAX_POCS {
-            return Err(structure(
-                format!("pocs = {}", self.pocs),
-                format!("at most {MAX_POCS} points of coupling"),
+            return Err(named(
+                "pocs",
+                format!("= {}: at most {MAX_POCS} points of coupling", self.pocs),
             ));
         }
         Ok(())
@@ -257,28 +209,28 @@ impl Params {
         // The ratings are the parameters `der[k].S_rated` here: named as such.
         for (k, u) in self.units.iter().enumerate() {
             if !(u.s_rated.is_finite() && u.s_rated > 0.0) {
-                return Err(parameter(
+                return Err(named(
                     format!("der[{}].S_rated", k + 1),
-                    format!("{} must be positive", u.s_rated),
+                    format!("= {}: must be positive", u.s_rated),
                 ));
             }
         }
         self.check_units_and_pocs()?;
         for (name, x) in [("S_base", self.s_base), ("S_dvpp", self.s_dvpp)] {
             if !(x.is_finite() && x > 0.0) {
-                return Err(parameter(name, format!("{x} must be positive")));
+                return Err(named(name, format!("= {x}: must be positive")));
             }
         }
         if !(0.0..=1.0).contains(&self.mu_min) {
-            return Err(parameter(
+            return Err(named(
                 "mu_min",
-                format!("{} must be in [0, 1]", self.mu_min),
+                format!("= {}: must be in [0, 1]", self.mu_min),
             ));
         }
         for (name, x) in [("rate_limit", self.rate_limit), ("delay", self.delay)] {
             // NaN is refused as well.
             if x.is_nan() || x < 0.0 {
-                return Err(parameter(name, format!("{x} must not be negative")));
+                return Err(named(name, format!("= {x}: must not be negative")));
             }
         }
         // Only the p-f channel is simulated here; T_qv = Dq is static (the roll-off is irrelevant).
@@ -293,14 +245,14 @@ impl Params {
             } else {
                 "Tdes.H, Tdes.D"
             };
-            parameter(field, e)
+            named(field, e)
         })?;
-        let rot = Rotation::from_rx(self.rot_rx).map_err(|e| parameter("rot.rx", e.to_string()))?;
+        let rot = Rotation::from_rx(self.rot_rx).map_err(|e| named("rot.rx", e))?;
         if self.rot_rx != 0.0 && self.pocs == 0 {
-            return Err(parameter(
+            return Err(named(
                 "rot.rx",
                 format!(
-                    "{}: the rotation applies to the POC powers, but there are none",
+                    "= {}: the rotation applies to the POC powers, but there are none",
                     self.rot_rx
                 ),
             ));
@@ -396,16 +348,13 @@ impl Measurement {
             ("poc", self.pocs.len(), params.pocs),
         ] {
             if found != expected {
-                return Err(Error::Measurement {
-                    field: field.into(),
-                    reason: format!("{found} entries, expected {expected}"),
-                });
+                return Err(named(
+                    field,
+                    format!("{found} entries, expected {expected}"),
+                ));
             }
         }
-        let not_finite = |field: String, x: f64| Error::Measurement {
-            field,
-            reason: format!("{x} is not finite"),
-        };
+        let not_finite = |field: String, x: f64| named(field, format!("= {x}: not finite"));
         for (k, u) in self.units.iter().enumerate() {
             for (name, x) in [("P_avail", u.p_avail), ("p", u.p), ("p_set", u.p_set)] {
                 if !x.is_finite() {
@@ -446,15 +395,6 @@ impl Measurement {
     fn set_point(&self) -> f64 {
         self.units.iter().map(|u| u.p_set).sum()
     }
-}
-
-/// What the host logs: a degenerate input warned once per episode, and the episode's end.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
-pub enum Notice {
-    /// A degenerate input the operator works around (the FMU: a warning, `fmi2Warning`).
-    Warning(String),
-    /// The end of a warned episode (the FMU: an event).
-    Event(String),
 }
 
 /// What the operator sends each step.
@@ -764,10 +704,8 @@ fn target(
             "all low-pass DERs report zero available power: active dc gains fall back to equal shares".into()
         },
     );
-    let mu_p = renormalize_with_floors(&weights, &floors(p)).map_err(|e| Error::Gains {
-        channel: "active",
-        reason: e.to_string(),
-    })?;
+    let mu_p = renormalize_with_floors(&weights, &floors(p))
+        .map_err(|e| Error::unit(format!("active dc gains: {e}")))?;
 
     let mut capacity = Vec::with_capacity(p.units.len());
     for (k, u) in p.units.iter().enumerate() {
@@ -800,13 +738,8 @@ fn target(
         (none, !none),
         || "no DER has reactive capacity left: reactive dc gains fall back to equal shares".into(),
     );
-    let mu_q =
-        renormalize_with_floor(&capacity, &vec![false; capacity.len()], 0.0).map_err(|e| {
-            Error::Gains {
-                channel: "reactive",
-                reason: e.to_string(),
-            }
-        })?;
+    let mu_q = renormalize_with_floor(&capacity, &vec![false; capacity.len()], 0.0)
+        .map_err(|e| Error::unit(format!("reactive dc gains: {e}")))?;
     Ok(Gains { p: mu_p, q: mu_q })
 }
 
@@ -882,12 +815,7 @@ mod tests {
     }
 
     fn field_of(e: Error) -> String {
-        match e {
-            Error::Structure { field, .. }
-            | Error::Parameter { field, .. }
-            | Error::Measurement { field, .. } => field,
-            Error::Gains { channel, .. } => channel.into(),
-        }
+        e.field.unwrap_or_default()
     }
 
     #[test]
@@ -915,7 +843,7 @@ mod tests {
         assert_eq!(field_of(p.check_structure().unwrap_err()), "ders");
         let mut p = Params::default();
         p.units[1].share = 0.0;
-        assert_eq!(field_of(p.check_structure().unwrap_err()), "ders[2] 'pv'");
+        assert_eq!(field_of(p.check_structure().unwrap_err()), "ders[2].share");
     }
 
     #[test]

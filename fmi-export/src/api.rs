@@ -511,7 +511,7 @@ pub unsafe fn get_fmu_state<M: Model>(c: fmi2Component, state: *mut fmi2FMUstate
                     return inst.error("fmi2GetFMUstate: *FMUstate is not a state of this FMU")
                 }
                 None => {
-                    *state = Box::into_raw(Box::new(Snapshot {
+                    *state = Box::into_raw(Box::new(Snapshot::<M> {
                         tag: inst.tag,
                         core,
                     })) as fmi2FMUstate
@@ -665,7 +665,7 @@ pub unsafe fn deserialize<M: Model>(
                         .error("fmi2DeSerializeFMUstate: *FMUstate is not a state of this FMU")
                 }
                 None => {
-                    *state = Box::into_raw(Box::new(Snapshot {
+                    *state = Box::into_raw(Box::new(Snapshot::<M> {
                         tag: inst.tag,
                         core,
                     })) as fmi2FMUstate
@@ -677,7 +677,10 @@ pub unsafe fn deserialize<M: Model>(
 }
 
 /// The body of `fmi2DeSerializeFMUstate`: the state in `bytes`, or the logged error.
-pub fn deserialize_core<M: Model>(inst: &Instance<M>, bytes: &[u8]) -> Result<Core<M>, Status> {
+pub fn deserialize_core<M: Model>(
+    inst: &Instance<M>,
+    bytes: &[u8],
+) -> Result<Core<M::State>, Status> {
     inst.deserialize(bytes)
         .map_err(|e| inst.error(format!("fmi2DeSerializeFMUstate: {e}")))
 }

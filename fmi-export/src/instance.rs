@@ -77,16 +77,18 @@ impl Call {
     }
 }
 
-/// Everything an FMU state snapshot holds: the part of an instance that evolves.
+/// Everything an FMU state snapshot holds: the part of an instance that evolves (`S`: the
+/// model's [`Model::State`]).
 #[derive(Debug, Clone, Serialize, Deserialize)]
-pub struct Core<M> {
+pub struct Core<S> {
     pub phase: Phase,
     pub time: f64,
     pub stop_time: Option<f64>,
     /// A value was set in initialization mode since the model last initialized.
     pub dirty: bool,
     pub store: Store,
-    pub model: M,
+    /// The model's running state: none until the model first initializes.
+    pub state: Option<S>,
 }
 
 /// What the layer knows of each variable to police `fmi2Set*`.
@@ -107,8 +109,10 @@ pub struct Instance<M: Model> {
     pub resources: Option<PathBuf>,
     config: Config<M::Config>,
     meta: [Vec<Meta>; 4],
-    pub core: Core<M>,
-    fresh: Core<M>,
+    /// The model: its variables' handles.
+    pub model: M,
+    pub core: Core<M::State>,
+    fresh: Core<M::State>,
     /// Keeps the strings `fmi2GetString` handed out alive until the next call.
     pub(crate) string_buffer: Vec<std::ffi::CString>,
     /// The values of the `fmi2Set*` call in progress (kept to reuse its allocation).
@@ -125,7 +129,7 @@ pub const NOT_FINITE: &str = "the model cannot continue";
 
 /// Header of serialized FMU states.
 const MAGIC: &[u8; 8] = b"DVPPFMU\x02";
-const STATE_FORMAT: u16 = 1;
+const STATE_FORMAT: u16 = 2;
 
 impl<M: Model> Instance<M> {
     /// Build an instance for `config`; `expected_guid` must match the description it implies.
@@ -151,7 +155,7 @@ impl<M: Model> Instance<M> {
             stop_time: None,
             dirty: true,
             store: vars.start_store(),
-            model,
+            state: None,
         };
         Ok(Instance {
             tag: model_tag::<M>(),
@@ -160,6 +164,7 @@ impl<M: Model> Instance<M> {
             logger,
             resources,
             meta: meta_of(&vars),
+            model,
             fresh: core.clone(),
             core,
             config,
@@ -219,8 +224,12 @@ impl<M: Model> Instance<M> {
         }
         let mut ctx = Context::new(Some(&self.logger));
         let core = &mut self.core;
-        match core.model.initialize(&mut core.store, &mut ctx) {
-            Ok(()) => {
+        match self
+            .model
+            .initialize(core.state.as_ref(), &mut core.store, &mut ctx)
+        {
+            Ok(state) => {
+                core.state = Some(state);
                 core.dirty = false;
                 ctx.status
             }
@@ -425,7 +434,12 @@ impl<M: Model> Instance<M> {
         }
         let mut ctx = Context::new(Some(&self.logger));
         let core = &mut self.core;
-        if let Err(e) = core.model.do_step(&mut core.store, t, h, &mut ctx) {
+        let Some(state) = core.state.as_mut() else {
+            return self.error(format!(
+                "fmi2DoStep at t = {t}: the model has not initialized"
+            ));
+        };
+        if let Err(e) = self.model.do_step(state, &mut core.store, t, h, &mut ctx) {
             let status = ctx.status;
             return self
                 .error(format!("fmi2DoStep at t = {t}: {e}"))
@@ -451,7 +465,7 @@ impl<M: Model> Instance<M> {
     }
 
     /// Serialize a snapshot: magic, format version, GUID, payload length, payload, checksum.
-    pub fn serialize(&self, core: &Core<M>) -> Result<Vec<u8>, String> {
+    pub fn serialize(&self, core: &Core<M::State>) -> Result<Vec<u8>, String> {
         let payload =
             postcard::to_stdvec(core).map_err(|e| format!("cannot serialize FMU state: {e}"))?;
         let mut out = Vec::with_capacity(payload.len() + 64);
@@ -468,7 +482,7 @@ impl<M: Model> Instance<M> {
 
     /// Read bytes written by [`Self::serialize`] (in this or another process); anything
     /// truncated, corrupted, of another format version or of another model is refused.
-    pub fn deserialize(&self, bytes: &[u8]) -> Result<Core<M>, String> {
+    pub fn deserialize(&self, bytes: &[u8]) -> Result<Core<M::State>, String> {
         let bad = |what: &str| format!("serialized FMU state refused: {what}");
         if bytes.len() < MAGIC.len() + 2 + 2 + 8 + 8 {
             return Err(bad("too short"));
@@ -505,7 +519,8 @@ impl<M: Model> Instance<M> {
         if u64::from_le_bytes(len.try_into().unwrap()) as usize != payload.len() {
             return Err(bad("payload length mismatch"));
         }
-        let core: Core<M> = postcard::from_bytes(payload).map_err(|e| bad(&e.to_string()))?;
+        let core: Core<M::State> =
+            postcard::from_bytes(payload).map_err(|e| bad(&e.to_string()))?;
         let s = &core.store;
         let sizes = [
             s.reals.len(),
@@ -537,9 +552,9 @@ fn meta_of(vars: &Variables) -> [Vec<Meta>; 4] {
 }
 
 /// What `fmi2GetFMUstate` hands out: a tagged copy of the evolving part of an instance.
-pub struct Snapshot<M> {
+pub struct Snapshot<M: Model> {
     pub(crate) tag: u64,
-    pub(crate) core: Core<M>,
+    pub(crate) core: Core<M::State>,
 }
 
 /// A value as log lines show it: plain, or in exponent form when very large or small.

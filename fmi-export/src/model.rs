@@ -8,12 +8,19 @@ use std::fmt;
 
 /// A model that the export layer turns into an FMI 2.0 Co-Simulation FMU.
 ///
-/// The model holds only its physics and control. Its variables live in a [`Store`] the layer
-/// owns, addressed by the typed handles that [`Model::declare`] returns; everything a master can
-/// see (names, units, causality, start values, dependencies) comes from that one declaration.
-pub trait Model: Clone + Send + Serialize + DeserializeOwned + 'static {
+/// The model is two things kept apart: its variables, which live in a [`Store`] the layer owns
+/// and which the model addresses by the typed handles [`Model::declare`] returns (the model
+/// value itself holds only those handles and what its configuration fixes), and its running
+/// state ([`Model::State`]), which initialization builds and each step advances. The layer keeps
+/// the state beside the store, so an FMU state (`fmi2GetFMUstate`, serialization) saves exactly
+/// the variables and the running state, never handles; everything a master can see (names,
+/// units, causality, start values, dependencies) comes from the one declaration.
+pub trait Model: Sized + Send + 'static {
     /// Structure that the variables depend on (read from `resources/config.toml`, `[model]`).
     type Config: Default + Clone + Serialize + DeserializeOwned;
+    /// What initialization builds from the parameters and the measured operating point, and
+    /// each step advances: the part of the model an FMU state saves beside the variables.
+    type State: Clone + Send + Serialize + DeserializeOwned + 'static;
     /// `modelIdentifier`: the binary's name and a C identifier.
     const IDENTIFIER: &'static str;
     /// `modelName`.
@@ -34,13 +41,22 @@ pub trait Model: Clone + Send + Serialize + DeserializeOwned + 'static {
         vars: &mut Variables,
     ) -> Result<Self, String>;
 
-    /// Compute initial outputs and states from parameters and inputs. Called in initialization
-    /// mode whenever a value was set since the last call, and on leaving it; must be idempotent.
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError>;
+    /// Build the running state and the initial outputs from parameters and inputs. Called in
+    /// initialization mode whenever a value was set since the last call, and on leaving it;
+    /// must be idempotent. `previous` is the state an earlier call of the same initialization
+    /// mode built (none on the first call and after a reset), for what must not repeat, such
+    /// as a warning already given.
+    fn initialize(
+        &self,
+        previous: Option<&Self::State>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<Self::State, ModelError>;
 
-    /// Advance from `t` to `t + h` with the inputs in `s`; write outputs to `s`.
+    /// Advance `state` from `t` to `t + h` with the inputs in `s`; write outputs to `s`.
     fn do_step(
-        &mut self,
+        &self,
+        state: &mut Self::State,
         s: &mut Store,
         t: f64,
         h: f64,

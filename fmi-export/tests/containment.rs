@@ -17,6 +17,7 @@ struct Fragile {
 
 impl Model for Fragile {
     type Config = ();
+    type State = ();
     const IDENTIFIER: &'static str = "fragile";
     const NAME: &'static str = "fragile";
     const DESCRIPTION: &'static str = "panics when x > 1, fails when x < -1";
@@ -29,13 +30,14 @@ impl Model for Fragile {
         })
     }
 
-    fn initialize(&mut self, s: &mut Store, _: &mut Context) -> Result<(), ModelError> {
+    fn initialize(&self, _: Option<&()>, s: &mut Store, _: &mut Context) -> Result<(), ModelError> {
         s[self.y] = s[self.x];
         Ok(())
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        _: &mut (),
         s: &mut Store,
         _: f64,
         _: f64,

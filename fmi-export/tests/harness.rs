@@ -26,6 +26,7 @@ struct Probe {
 
 impl Model for Probe {
     type Config = ();
+    type State = ();
     const IDENTIFIER: &'static str = "probe";
     const NAME: &'static str = "probe";
     const DESCRIPTION: &'static str = "y = gain x; panics when x > 1, fails when x < -1";
@@ -41,7 +42,12 @@ impl Model for Probe {
         })
     }
 
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
+    fn initialize(
+        &self,
+        _: Option<&()>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<(), ModelError> {
         if s[self.gain] == 0.0 {
             return Err("'gain' = 0: must be > 0".into());
         }
@@ -52,7 +58,8 @@ impl Model for Probe {
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        _: &mut (),
         s: &mut Store,
         _: f64,
         _: f64,

@@ -16,6 +16,7 @@ struct Lag {
 
 impl Model for Lag {
     type Config = ();
+    type State = ();
     const IDENTIFIER: &'static str = "lag";
     const NAME: &'static str = "lag";
     const DESCRIPTION: &'static str = "k/(tau s + 1); panics on a zero tau";
@@ -29,7 +30,7 @@ impl Model for Lag {
         })
     }
 
-    fn initialize(&mut self, s: &mut Store, _: &mut Context) -> Result<(), ModelError> {
+    fn initialize(&self, _: Option<&()>, s: &mut Store, _: &mut Context) -> Result<(), ModelError> {
         let pole = -1.0 / s[self.tau];
         assert!(pole.is_finite(), "realization: pole {pole} is not finite");
         s[self.y] = 0.0;
@@ -37,7 +38,8 @@ impl Model for Lag {
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        _: &mut (),
         _: &mut Store,
         _: f64,
         _: f64,

@@ -1,15 +1,16 @@
-//! One channel's ADPF parameters (`adpf.p.*`, `adpf.q.*`): their declaration and the ADPF they build.
+//! One channel's ADPF parameters (`adpf.p.*`, `adpf.q.*`): their declaration and their values as `dvpp_controllers::AdpfParams`.
 
 use crate::preset::AdpfDefaults;
-use crate::{err, positive, AdpfKind, MAX_LPF};
-use dvpp_control::{Adpf, LowPassSpec};
+use crate::{err, model_error, AdpfKind, MAX_LPF};
+use dvpp_control::Adpf;
+use dvpp_controllers::{AdpfChannel, AdpfParams, ComplementParams};
 use fmi_export::{Integer, ModelError, Real, Spec, Store, Variables};
 use serde::{Deserialize, Serialize};
 
 /// Handles of one channel's ADPF shape parameters (`adpf.p.*` or `adpf.q.*`).
 #[derive(Clone, Serialize, Deserialize)]
-pub(crate) struct AdpfParams {
-    prefix: String,
+pub(crate) struct AdpfVars {
+    channel: AdpfChannel,
     pub(crate) kind: Integer,
     tau: Real,
     tau2: Real,
@@ -22,9 +23,14 @@ pub(crate) struct AdpfParams {
     lpf_order: Vec<Integer>,
 }
 
-impl AdpfParams {
+impl AdpfVars {
     pub(crate) fn declare(v: &mut Variables, ch: &str, d: &AdpfDefaults, complement: bool) -> Self {
-        let prefix = format!("adpf.{ch}");
+        let channel = if ch == "p" {
+            AdpfChannel::P
+        } else {
+            AdpfChannel::Q
+        };
+        let prefix = channel.prefix();
         let what = if ch == "p" { "p-f" } else { "v-q" };
         let kinds = if complement {
             "0 static, 1 low-pass, 2 high-pass, 3 band-pass, 4 complement of low-pass units"
@@ -125,8 +131,8 @@ impl AdpfParams {
                 );
             }
         }
-        AdpfParams {
-            prefix,
+        AdpfVars {
+            channel,
             kind,
             tau,
             tau2,
@@ -139,81 +145,44 @@ impl AdpfParams {
         }
     }
 
-    pub(crate) fn name(&self, field: &str) -> String {
-        format!("{}.{field}", self.prefix)
+    /// The channel's parameters as they are now; an unknown `adpf.*.kind` code is refused by name.
+    pub(crate) fn read(&self, s: &Store) -> Result<AdpfParams, ModelError> {
+        let complement = match (self.share, self.n_lpf) {
+            (Some(share), Some(n_lpf)) => {
+                let mut c = ComplementParams {
+                    share: s[share],
+                    n_lpf: s[n_lpf] as usize,
+                    lpf_tau: [0.0; MAX_LPF],
+                    lpf_order: [0; MAX_LPF],
+                };
+                for k in 0..MAX_LPF {
+                    c.lpf_tau[k] = s[self.lpf_tau[k]];
+                    c.lpf_order[k] = s[self.lpf_order[k]] as u32;
+                }
+                Some(c)
+            }
+            _ => None,
+        };
+        Ok(AdpfParams {
+            channel: self.channel,
+            kind: self.kind(s)?,
+            tau: s[self.tau],
+            tau2: s[self.tau2],
+            order: s[self.order] as u32,
+            order2: s[self.order2] as u32,
+            complement,
+        })
     }
 
-    /// The ADPF these parameters describe, with dc gain `mu` (static, low-pass) or the closed
+    /// The ADPF the parameters describe, with dc gain `mu` (static, low-pass) or the closed
     /// units' gains `lpf_mu` (complement).
     pub(crate) fn build(&self, s: &Store, mu: f64, lpf_mu: &[f64]) -> Result<Adpf, ModelError> {
-        let order = |i: Integer| s[i] as u32;
-        let wrap = |field: &str| {
-            let name = self.name(field);
-            move |e: dvpp_control::DvppError| err(&name, e)
-        };
-        match self.kind(s)? {
-            AdpfKind::Static => Adpf::static_gain(mu).map_err(wrap("kind")),
-            AdpfKind::LowPass => {
-                let tau = positive(s, self.tau, &self.name("tau"))?;
-                Adpf::low_pass(mu, tau, order(self.order)).map_err(wrap("tau"))
-            }
-            AdpfKind::HighPass => {
-                let tau = positive(s, self.tau, &self.name("tau"))?;
-                Adpf::high_pass(tau, order(self.order)).map_err(wrap("tau"))
-            }
-            AdpfKind::BandPass => {
-                let tau = positive(s, self.tau, &self.name("tau"))?;
-                let tau2 = positive(s, self.tau2, &self.name("tau2"))?;
-                if tau2 >= tau {
-                    return Err(err(
-                        &self.name("tau2"),
-                        format!("= {tau2}: a band-pass needs tau2 < tau = {tau}"),
-                    ));
-                }
-                Adpf::band_pass(tau, tau2, order(self.order), order(self.order2))
-                    .map_err(wrap("tau2"))
-            }
-            AdpfKind::Complement => {
-                let (Some(share), Some(n_lpf)) = (self.share, self.n_lpf) else {
-                    return Err(err(
-                        &self.name("kind"),
-                        format!("= {}: a complement closes p-f units only", s[self.kind]),
-                    ));
-                };
-                let share = s[share];
-                if share <= 0.0 {
-                    return Err(err(&self.name("share"), format!("= {share}: must be > 0")));
-                }
-                let n = s[n_lpf] as usize;
-                let mut specs = Vec::with_capacity(n);
-                for (k, (&mu, (&tau, &ord))) in lpf_mu
-                    .iter()
-                    .zip(self.lpf_tau.iter().zip(&self.lpf_order))
-                    .take(n)
-                    .enumerate()
-                {
-                    let name = format!("{}.lpf[{}].tau", self.prefix, k + 1);
-                    let tau = positive(s, tau, &name)?;
-                    specs.push(LowPassSpec {
-                        mu,
-                        tau,
-                        order: order(ord),
-                    });
-                }
-                let sum: f64 = lpf_mu[..n].iter().sum();
-                if sum > share + 1e-9 {
-                    return Err(err(
-                        "mu_p_lpf",
-                        format!("the closed units' dc gains sum to {sum} > share {share}"),
-                    ));
-                }
-                Adpf::complement_of_specs(share, specs).map_err(wrap("n_lpf"))
-            }
-        }
+        self.read(s)?.build(mu, lpf_mu).map_err(model_error)
     }
 
     /// The ADPF's kind, or an error naming `adpf.*.kind` if its code is none.
     pub(crate) fn kind(&self, s: &Store) -> Result<AdpfKind, ModelError> {
-        AdpfKind::from_code(s[self.kind]).map_err(|e| err(&self.name("kind"), e))
+        AdpfKind::from_code(s[self.kind])
+            .map_err(|e| err(&format!("{}.kind", self.channel.prefix()), e))
     }
 }

@@ -22,6 +22,7 @@
 //! energies: over any run `E_src - E_ac - E_loss = W - W(0)` to rounding.
 
 use dvpp_control::{Hold, LtiSimulator, StateSpace};
+use dvpp_controllers::dc::damping_gain;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -82,15 +83,6 @@ impl DcParams {
         let b = DVector::from_column_slice(&[br, -1.0, 0.0, 0.0]);
         StateSpace::new(a, b, DMatrix::identity(4, 4), DVector::zeros(4)).expect("dc realization")
     }
-}
-
-/// The gain `k_d` of the capacitor-power term that gives the loop of the dc-voltage control
-/// (`k_dc` through the source lag `tau` on the link `c`, `g`) the damping ratio `zeta` (0 when it
-/// has that much without it); the phasor DER's dc model and the EMT controller use it alike.
-pub(crate) fn damping_gain(tau: f64, c: f64, g: f64, k_dc: f64, zeta: f64) -> f64 {
-    let k_e = k_dc / c;
-    let g = 2.0 * g / c;
-    (2.0 * zeta * (k_e * tau).sqrt() - 1.0 - tau * g).max(0.0)
 }
 
 /// Which dc-side limit acts.

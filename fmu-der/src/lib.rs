@@ -28,13 +28,11 @@
 //! voltage `v_dc` a proportional controller (`k_dc`) holds. The control math is `dvpp_control`.
 
 mod adpf;
-mod codes;
 mod common;
 mod dc;
 pub mod emt;
 mod following;
 mod forming;
-mod layer;
 mod limits;
 pub mod ports;
 mod preset;
@@ -43,17 +41,15 @@ mod step;
 mod unit_vars;
 mod variables;
 
-pub use codes::{AdpfKind, Mode};
+pub use dvpp_controllers::{AdpfKind, Mode, MAX_LPF};
 pub use limits::priority;
 pub use preset::{Preset, Shape, UnitDefaults, PRESETS};
 
-use adpf::AdpfParams;
+use adpf::AdpfVars;
+use dvpp_controllers::layer;
 use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Variables};
 use runtime::Runtime;
 use serde::{Deserialize, Serialize};
-
-/// Most low-pass units a complement unit can close (`mu_p_lpf[1..8]`).
-pub const MAX_LPF: usize = 8;
 
 /// The DER's variable handles and, after initialization, its controller.
 #[derive(Clone, Serialize, Deserialize)]
@@ -69,8 +65,8 @@ pub struct Der {
     tau_q: Real,
     r_f: Real,
     x_f: Real,
-    adpf_p: AdpfParams,
-    adpf_q: AdpfParams,
+    adpf_p: AdpfVars,
+    adpf_q: AdpfVars,
     pll_kp: Real,
     pll_ki: Real,
     pll_tau: Real,
@@ -133,8 +129,6 @@ pub struct Der {
     rot_rx: Real,
     p_rot: Real,
     q_rot: Real,
-    /// Boxed: each step takes it out and puts it back, which moves only the pointer.
-    rt: Option<Box<Runtime>>,
 }
 
 /// Structure of the DER: which of the paper's units it is.
@@ -160,24 +154,25 @@ fn err(name: &str, message: impl std::fmt::Display) -> ModelError {
 }
 
 fn positive(s: &Store, r: Real, name: &str) -> Result<f64, ModelError> {
-    let x = s[r];
-    if x > 0.0 && x.is_finite() && x.is_normal() {
-        Ok(x)
-    } else if x > 0.0 && x.is_finite() {
-        Err(err(
-            name,
-            format!(
-                "= {x:e}: must be > 0 and not subnormal (at least {:e})",
-                f64::MIN_POSITIVE
-            ),
-        ))
-    } else {
-        Err(err(name, format!("= {x}: must be > 0")))
+    dvpp_controllers::positive(s[r], name).map_err(model_error)
+}
+
+/// A controller's error as the FMU reports it (the same text).
+fn model_error(e: dvpp_controllers::Error) -> ModelError {
+    ModelError(e.to_string())
+}
+
+/// A controller's warning or event into the FMU's log.
+fn log(ctx: &mut Context, notice: dvpp_controllers::Notice) {
+    match notice {
+        dvpp_controllers::Notice::Warning(w) => ctx.warn(w),
+        dvpp_controllers::Notice::Event(e) => ctx.event(e),
     }
 }
 
 impl Model for Der {
     type Config = DerConfig;
+    type State = Runtime;
     const IDENTIFIER: &'static str = "dvpp_der";
     const NAME: &'static str = "DVPP DER matching controller";
     const DESCRIPTION: &'static str = "DVPP unit, grid-forming (df = -T_pf/m_p dp) or grid-following (dp = -m_p T_pf^-1 df), with ADPFs, dc side and rating limits";
@@ -192,25 +187,26 @@ impl Model for Der {
         Der::declare_variables(config, v)
     }
 
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
+    fn initialize(
+        &self,
+        previous: Option<&Runtime>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<Runtime, ModelError> {
         // Initialization may run several times in initialization mode; a warning already given
-        // in this episode is not repeated (a reset starts a new episode with `rt` = None).
-        let again = self.rt.take().map(|rt| rt.common.warned_gains);
-        self.rt = Some(Box::new(self.build(s, ctx, again)?));
-        Ok(())
+        // in this episode is not repeated.
+        self.build(s, ctx, previous.map(|rt| rt.common.warned_gains))
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        rt: &mut Runtime,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        let mut rt = self.rt.take().ok_or("the DER is not initialized")?;
-        let result = self.step(&mut rt, s, t, h, ctx);
-        self.rt = Some(rt);
-        result
+        self.step(rt, s, t, h, ctx)
     }
 }
 

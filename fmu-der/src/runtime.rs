@@ -20,7 +20,7 @@ pub(crate) enum Channel {
 
 /// Everything `initialize` builds from the parameters.
 #[derive(Clone, Serialize, Deserialize)]
-pub(crate) struct Runtime {
+pub struct Runtime {
     pub(crate) channel: Channel,
     pub(crate) common: Common,
 }
@@ -78,8 +78,8 @@ impl Der {
             tdes: &tdes,
             adpf_p: &adpf_p,
             adpf_q: &adpf_q,
-            params_p: &self.adpf_p,
-            params_q: &self.adpf_q,
+            params_p: &self.adpf_p.read(s)?,
+            params_q: &self.adpf_q.read(s)?,
             s_rated: s[self.s_rated],
             s_dvpp: s[self.s_dvpp],
             pll_tau,

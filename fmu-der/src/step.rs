@@ -52,7 +52,7 @@ impl Der {
             c.n_lpf,
             share,
             &mut c.warned_gains,
-            ctx,
+            &mut |n| crate::log(ctx, n),
         )?;
         // The set point: the dispatch (ramped in after a start from zero voltage), curtailed to
         // what the primary source allows (a cloud lowers it).

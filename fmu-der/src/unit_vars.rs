@@ -1,7 +1,8 @@
 //! The variables both DER controllers declare alike (the phasor `Der` and the EMT-level `DerEmt`): rating and bases, mode and `T_des`, the PLL, the dc side, the primary source, the operator's dc gains.
 
-use crate::{err, ports, positive, UnitDefaults, MAX_LPF};
+use crate::{ports, UnitDefaults, MAX_LPF};
 use dvpp_control::TDes;
+use dvpp_controllers::layer::TDesParams;
 use fmi_export::{Boolean, Integer, Real, Spec, Variables};
 use fmi_export::{ModelError, Store};
 use serde::{Deserialize, Serialize};
@@ -349,29 +350,11 @@ impl GainVars {
 
 /// `T_des` from its parameters `Tdes.H`, `Tdes.D`, `Tdes.Dq`, `Tdes.tau_q`, checked.
 pub(crate) fn tdes(s: &Store, h: Real, d: Real, dq: Real, tau_q: Real) -> Result<TDes, ModelError> {
-    let (h, d) = (s[h], s[d]);
-    if h < 0.0 {
-        return Err(err(
-            "Tdes.H",
-            format!("= {h}: T_pf = 1/(H s + D) is unstable"),
-        ));
-    }
-    if h != 0.0 && !h.is_normal() {
-        return Err(err(
-            "Tdes.H",
-            format!(
-                "= {h:e}: must be 0 or at least {:e} (a subnormal inertia overflows T_pf = 1/(H s + D))",
-                f64::MIN_POSITIVE
-            ),
-        ));
-    }
-    if d <= 0.0 {
-        return Err(err(
-            "Tdes.D",
-            format!("= {d}: T_pf = 1/(H s + D) is not stable (needs D > 0)"),
-        ));
-    }
-    let dq = positive(s, dq, "Tdes.Dq")?;
-    let tau_q = positive(s, tau_q, "Tdes.tau_q")?;
-    TDes::inertia_droop(h, d, dq, tau_q).map_err(|e| err("Tdes", e))
+    let params = TDesParams {
+        h: s[h],
+        d: s[d],
+        dq: s[dq],
+        tau_q: s[tau_q],
+    };
+    Ok(params.build()?)
 }

@@ -1,6 +1,6 @@
 //! The FMU's variables: the declaration of every parameter, input and output, with its start value.
 
-use crate::adpf::AdpfParams;
+use crate::adpf::AdpfVars;
 use crate::unit_vars::{par, tun, DcVars, GainVars, PllVars, SourceVars, UnitVars};
 use crate::{limits, ports, Der, DerConfig, UnitDefaults};
 use fmi_export::{Spec, Variables};
@@ -37,8 +37,8 @@ impl Der {
             "grid-forming: reactance between the imposed voltage and the terminal bus, the LV/MV transformer, on S_rated",
             1e-6,
         );
-        let adpf_p = AdpfParams::declare(v, "p", &u.adpf_p, true);
-        let adpf_q = AdpfParams::declare(v, "q", &u.adpf_q, false);
+        let adpf_p = AdpfVars::declare(v, "p", &u.adpf_p, true);
+        let adpf_q = AdpfVars::declare(v, "q", &u.adpf_q, false);
         let PllVars {
             kp: pll_kp,
             ki: pll_ki,
@@ -413,7 +413,6 @@ impl Der {
                 )
                 .initial_dependencies(&[ports::P, ports::Q]),
             ),
-            rt: None,
         })
     }
 }

@@ -234,8 +234,15 @@ pub struct Plant {
     pcc_f: Real,
     pcc_f_filter_t: Real,
     energy: EnergyVars,
-    fixed: Option<Fixed>,
-    run: Option<Run>,
+}
+
+/// The EMT plant's running state: what initialization fixes from the parameters, the circuit's
+/// state, and the discretizations computed so far.
+#[derive(Clone, Serialize, Deserialize)]
+pub struct PlantState {
+    fixed: Fixed,
+    run: Run,
+    /// Rebuilt on demand after a restore.
     #[serde(skip)]
     cache: Cache,
 }
@@ -751,10 +758,7 @@ impl Plant {
     }
 
     /// Write every measurement of the current state.
-    fn write_outputs(&self, s: &mut Store) {
-        let (Some(fixed), Some(run)) = (&self.fixed, &self.run) else {
-            return;
-        };
+    fn write_outputs(&self, fixed: &Fixed, run: &Run, s: &mut Store) {
         let net = &fixed.net;
         let nc = net.nc();
         let z = Self::augmented(fixed, run);
@@ -819,6 +823,7 @@ impl Plant {
 }
 
 impl Model for Plant {
+    type State = PlantState;
     type Config = PlantConfig;
     const IDENTIFIER: &'static str = "dvpp_emt_plant";
     const NAME: &'static str = "DVPP EMT plant";
@@ -957,13 +962,15 @@ impl Model for Plant {
             pcc_f,
             pcc_f_filter_t,
             energy,
-            fixed: None,
-            run: None,
-            cache: Cache::default(),
         })
     }
 
-    fn initialize(&mut self, s: &mut Store, _ctx: &mut Context) -> Result<(), ModelError> {
+    fn initialize(
+        &self,
+        _: Option<&PlantState>,
+        s: &mut Store,
+        _ctx: &mut Context,
+    ) -> Result<PlantState, ModelError> {
         let fixed = self.fixed(s)?;
         let net = &fixed.net;
         let topo = fixed.topology(0.0);
@@ -1028,26 +1035,26 @@ impl Model for Plant {
             p_m,
             df_lag: 0.0,
         };
-        self.cache.clear();
-        self.fixed = Some(fixed);
-        self.run = Some(run);
         for u in &self.units {
             s[u.m_clamped] = false;
         }
-        self.write_outputs(s);
-        Ok(())
+        self.write_outputs(&fixed, &run, s);
+        Ok(PlantState {
+            fixed,
+            run,
+            cache: Cache::default(),
+        })
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        state: &mut PlantState,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        let (Some(fixed), Some(run)) = (&self.fixed, &mut self.run) else {
-            return Err("do_step before initialization".into());
-        };
+        let PlantState { fixed, run, cache } = state;
         let net = &fixed.net;
         let t0 = *run.t0.get_or_insert(t);
         let topo = fixed.topology(t);
@@ -1078,7 +1085,7 @@ impl Model for Plant {
                 }
             }
         }
-        let d = self.cache.get(net, &topo, h).map_err(ModelError)?;
+        let d = cache.get(net, &topo, h).map_err(ModelError)?;
         let n_units = net.units.len();
         let energy = |i: usize| network::quadratic(&d.forms[i], &z);
         for (k, u) in self.units.iter().enumerate() {
@@ -1130,7 +1137,7 @@ impl Model for Plant {
         } else {
             df - run.df_lag
         };
-        self.write_outputs(s);
+        self.write_outputs(fixed, run, s);
         Ok(())
     }
 }

@@ -113,12 +113,12 @@ struct MachineVars {
     pm: Real,
 }
 
-/// The grid FMU: the [`Grid`] and the handles of its variables.
-#[derive(Clone, Serialize, Deserialize)]
+/// The grid FMU: the handles of its variables and the grid its configuration builds.
 pub struct GridFmu {
-    grid: Grid,
-    /// The clock was aligned with the master's start time (first `do_step`).
-    started: bool,
+    /// The grid as the case file builds it: what initialization starts from.
+    built: Grid,
+    /// The inputs' start values (θ, E or p_ref, q_ref per slot): see [`GridState::input_auto`].
+    input_start: Vec<(f64, f64)>,
     slots: Vec<SlotVars>,
     events: Vec<EventVars>,
     machines: Vec<MachineVars>,
@@ -126,24 +126,36 @@ pub struct GridFmu {
     /// Per point of coupling: p, q, v, f.
     pocs: Vec<[Real; 4]>,
     /// Per DVPP PCC (`[[dvpp_pcc]]`): p, q, v, f.
-    #[serde(default)]
     dvpp_pccs: Vec<[Real; 4]>,
     /// `area.p_load`, `area.q_load` (cases with POCs).
     area_load: Option<[Real; 2]>,
     /// The R/X parameters (cases with an `[mv]` table).
     rx: Option<RxVars>,
-    /// Per slot, the input values (θ, E or p_ref, q_ref) the FMU itself put in the store (the
-    /// start values, or the set points of a power flow re-solved for new R/X parameters): an
-    /// input still holding them has not been set by the master.
-    input_auto: Vec<(f64, f64)>,
     coi_f: Real,
     /// `energized`: a voltage source is left.
     energized: Boolean,
     /// Generation, load, losses and generation − load − losses.
     balance: [Real; 4],
     load_shed: Real,
-    /// The reduced internal step (if any) has been logged.
-    step_logged: bool,
+}
+
+/// The grid FMU's running state: the grid being simulated.
+#[derive(Clone, Serialize, Deserialize)]
+pub struct GridState {
+    grid: Grid,
+    /// The clock was aligned with the master's start time (first `do_step`).
+    started: bool,
+    /// Per slot, the input values (θ, E or p_ref, q_ref) the FMU itself put in the store (the
+    /// start values, or the set points of a power flow re-solved for new R/X parameters): an
+    /// input still holding them has not been set by the master.
+    input_auto: Vec<(f64, f64)>,
+}
+
+impl GridState {
+    /// The grid being simulated.
+    pub fn grid(&self) -> &Grid {
+        &self.grid
+    }
 }
 
 /// A Boolean output (discrete; Real outputs come from [`Spec::output`]).
@@ -156,13 +168,13 @@ fn event_label(e: &Event) -> String {
 }
 
 impl GridFmu {
-    /// The grid being simulated.
-    pub fn grid(&self) -> &Grid {
-        &self.grid
+    /// The grid as the case file builds it, before initialization.
+    pub fn built(&self) -> &Grid {
+        &self.built
     }
 
-    fn write_outputs(&self, s: &mut Store) {
-        let o = self.grid.outputs();
+    fn write_outputs(&self, grid: &Grid, s: &mut Store) {
+        let o = grid.outputs();
         for (vars, d) in self.slots.iter().zip(&o.der) {
             s[vars.p] = d.p;
             s[vars.q] = d.q;
@@ -198,13 +210,13 @@ impl GridFmu {
             s[q] = o.area_q_load;
         }
         s[self.coi_f] = o.coi_f;
-        s[self.energized] = self.grid.energized();
+        s[self.energized] = grid.energized();
         let [gen, load, loss, mismatch] = self.balance;
         s[gen] = o.gen_p;
         s[load] = o.load_p;
         s[loss] = o.loss_p;
         s[mismatch] = o.balance_p;
-        s[self.load_shed] = self.grid.load_shed();
+        s[self.load_shed] = grid.load_shed();
     }
 }
 
@@ -212,11 +224,11 @@ impl GridFmu {
     /// Apply the R/X parameters: when they differ from the grid's case, rebuild the grid (power
     /// flow and initialization) from the case with the new ratios, and move the inputs the
     /// master has not set to the new set points.
-    fn apply_rx(&mut self, s: &mut Store) -> Result<(), ModelError> {
+    fn apply_rx(&self, st: &mut GridState, s: &mut Store) -> Result<(), ModelError> {
         let Some(rx) = &self.rx else {
             return Ok(());
         };
-        let mut case = self.grid.case().clone();
+        let mut case = st.grid.case().clone();
         let lines = case.mv_line_indices();
         if let Some(mv) = case.mv.as_mut() {
             mv.rx = s[rx.mv];
@@ -225,7 +237,7 @@ impl GridFmu {
             let v = s[vr];
             case.lines[i].rx = (v > 0.0).then_some(v);
         }
-        if case == *self.grid.case() {
+        if case == *st.grid.case() {
             return Ok(());
         }
         let grid = Grid::new(&case).map_err(|e| {
@@ -235,12 +247,12 @@ impl GridFmu {
                 s[rx.mv]
             ))
         })?;
-        self.grid = grid;
+        st.grid = grid;
         for ((vars, auto), init) in self
             .slots
             .iter()
-            .zip(&mut self.input_auto)
-            .zip(self.grid.der_initial())
+            .zip(&mut st.input_auto)
+            .zip(st.grid.der_initial())
         {
             if (s[vars.a], s[vars.b]) != *auto {
                 continue;
@@ -259,6 +271,7 @@ impl GridFmu {
 
 impl Model for GridFmu {
     type Config = GridConfig;
+    type State = GridState;
     const IDENTIFIER: &'static str = "dvpp_grid";
     const NAME: &'static str = "DVPP reduced grid";
     const DESCRIPTION: &'static str =
@@ -692,8 +705,8 @@ impl Model for GridFmu {
             RxVars { mv: mv_rx, lines }
         });
         Ok(GridFmu {
-            grid,
-            started: false,
+            built: grid,
+            input_start: input_auto,
             slots,
             events,
             machines,
@@ -702,24 +715,34 @@ impl Model for GridFmu {
             dvpp_pccs,
             area_load,
             rx,
-            input_auto,
             coi_f,
             energized,
             balance,
             load_shed,
-            step_logged: false,
         })
     }
 
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
-        if !self.step_logged {
-            if let Some(note) = self.grid.internal_step_note() {
-                ctx.warn(note);
+    fn initialize(
+        &self,
+        previous: Option<&GridState>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<GridState, ModelError> {
+        let mut st = match previous {
+            Some(st) => st.clone(),
+            None => {
+                if let Some(note) = self.built.internal_step_note() {
+                    ctx.warn(note);
+                }
+                GridState {
+                    grid: self.built.clone(),
+                    started: false,
+                    input_auto: self.input_start.clone(),
+                }
             }
-            self.step_logged = true;
-        }
-        self.apply_rx(s)?;
-        let sb = self.grid.case().base_mva;
+        };
+        self.apply_rx(&mut st, s)?;
+        let sb = st.grid.case().base_mva;
         for (i, e) in self.events.iter().enumerate() {
             let ov = EventOverride {
                 enabled: Some(s[e.enabled]),
@@ -727,26 +750,25 @@ impl Model for GridFmu {
                 dp_mw: e.size.map(|(p, _)| s[p] * sb),
                 dq_mvar: e.size.map(|(_, q)| s[q] * sb),
             };
-            self.grid
+            st.grid
                 .set_event_override(i, ov)
                 .map_err(|err| ModelError(err.to_string()))?;
         }
-        self.write_outputs(s);
-        Ok(())
+        self.write_outputs(&st.grid, s);
+        Ok(st)
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        st: &mut GridState,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        if !self.started {
-            self.grid
-                .start_at(t)
-                .map_err(|e| ModelError(e.to_string()))?;
-            self.started = true;
+        if !st.started {
+            st.grid.start_at(t).map_err(|e| ModelError(e.to_string()))?;
+            st.started = true;
         }
         for (k, vars) in self.slots.iter().enumerate() {
             let (a, b) = (s[vars.a], s[vars.b]);
@@ -755,7 +777,7 @@ impl Model for GridFmu {
             } else {
                 DerInput::GridFollowing { p_ref: a, q_ref: b }
             };
-            self.grid
+            st.grid
                 .set_der_input_deferred(k, input)
                 .map_err(|e| ModelError(e.to_string()))?;
             let none = |x: f64, inf: f64| if x.abs() >= NO_LIMIT { inf } else { x };
@@ -767,22 +789,22 @@ impl Model for GridFmu {
                 p_min: none(p_min, f64::NEG_INFINITY),
                 p_max: none(p_max, f64::INFINITY),
             };
-            self.grid
+            st.grid
                 .set_der_limit(k, limit)
                 .map_err(|e| ModelError(format!("slot {}: {e}", k + 1)))?;
         }
-        let energized = self.grid.energized();
-        self.grid
+        let energized = st.grid.energized();
+        st.grid
             .step(t, h)
             .map_err(|e| ModelError(format!("grid step from t = {t} s: {e}")))?;
-        if energized && !self.grid.energized() {
+        if energized && !st.grid.energized() {
             ctx.warn(format!(
                 "in the step from t = {t} s: no voltage source is left (no machine in service, no grid-forming \
                  unit): the grid-following units have no voltage to synchronize to and lose \
                  synchronism; the network is de-energized (blackout)"
             ));
         }
-        self.write_outputs(s);
+        self.write_outputs(&st.grid, s);
         Ok(())
     }
 }

@@ -9,9 +9,10 @@
 
 pub mod ports;
 
-use dvpp_controllers::operator::{self as library, Command, Measurement, Notice, Params, Pcc};
+use dvpp_controllers::operator::{self as library, Command, Measurement, Params, Pcc};
 pub use dvpp_controllers::operator::{Form, Role, Unit, Unit as DerEntry, MAX_POCS};
 use dvpp_controllers::operator::{PocMeasurement, UnitMeasurement};
+use dvpp_controllers::Notice;
 use fmi_export::{Context, Model, ModelError, Real, Spec, Store, Variables};
 use serde::{Deserialize, Serialize};
 
@@ -56,7 +57,6 @@ impl OperatorConfig {
 }
 
 /// Handles of the parameters.
-#[derive(Clone, Serialize, Deserialize)]
 struct ParamVars {
     s_base: Real,
     s_dvpp: Real,
@@ -69,7 +69,6 @@ struct ParamVars {
 }
 
 /// Handles of one DER's variables.
-#[derive(Clone, Serialize, Deserialize)]
 struct DerVars {
     s_rated: Real,
     p_avail: Real,
@@ -83,7 +82,6 @@ struct DerVars {
 }
 
 /// Handles of the PCC's inputs and the desired response's outputs.
-#[derive(Clone, Serialize, Deserialize)]
 struct PccVars {
     p: Real,
     q: Real,
@@ -98,7 +96,6 @@ struct PccVars {
 }
 
 /// Handles of one point of coupling's variables.
-#[derive(Clone, Serialize, Deserialize)]
 struct PocVars {
     p: Real,
     q: Real,
@@ -107,7 +104,6 @@ struct PocVars {
 }
 
 /// Handles of the POCs of a DVPP area (`[model] pocs` > 0).
-#[derive(Clone, Serialize, Deserialize)]
 struct PocsVars {
     /// Parameter `rot.rx`.
     rot_rx: Real,
@@ -118,8 +114,7 @@ struct PocsVars {
     dp: Real,
 }
 
-/// The operator FMU: its variables' handles and the running library operator.
-#[derive(Clone, Serialize, Deserialize)]
+/// The operator FMU: its variables' handles (its running state is the library's operator).
 pub struct Operator {
     config: OperatorConfig,
     params: ParamVars,
@@ -127,8 +122,6 @@ pub struct Operator {
     pcc: PccVars,
     /// Points of coupling (`[model] pocs` > 0).
     pocs: Option<PocsVars>,
-    /// The library operator, built by `initialize`.
-    running: Option<library::Operator>,
 }
 
 impl Operator {
@@ -229,6 +222,7 @@ impl Operator {
 
 impl Model for Operator {
     type Config = OperatorConfig;
+    type State = library::Operator;
     const IDENTIFIER: &'static str = "dvpp_operator";
     const NAME: &'static str = "DVPP operator";
     const DESCRIPTION: &'static str =
@@ -242,7 +236,9 @@ impl Model for Operator {
         v: &mut Variables,
     ) -> Result<Self, String> {
         let start = config.params();
-        start.check_structure().map_err(|e| e.to_string())?;
+        start
+            .check_structure()
+            .map_err(|e| format!("[model] {e}"))?;
         let params = ParamVars::declare(v, &start);
         let mut ders = DerVars::declare_inputs(v, config);
         DerVars::declare_gains(v, config, &mut ders);
@@ -254,31 +250,32 @@ impl Model for Operator {
             ders,
             pcc,
             pocs,
-            running: None,
         })
     }
 
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
+    fn initialize(
+        &self,
+        _: Option<&library::Operator>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<library::Operator, ModelError> {
         let (op, command) = library::Operator::initialize(self.params(s), &self.measurement(s))
             .map_err(|e| ModelError(e.to_string()))?;
         self.write(s, &command, ctx);
-        self.running = Some(op);
-        Ok(())
+        Ok(op)
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        op: &mut library::Operator,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        let m = self.measurement(s);
-        let op = self
-            .running
-            .as_mut()
-            .ok_or_else(|| ModelError("the operator steps before its initialization".into()))?;
-        let command = op.step(&m, t, h).map_err(|e| ModelError(e.to_string()))?;
+        let command = op
+            .step(&self.measurement(s), t, h)
+            .map_err(|e| ModelError(e.to_string()))?;
         self.write(s, &command, ctx);
         Ok(())
     }

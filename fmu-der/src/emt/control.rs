@@ -1,13 +1,13 @@
 //! The EMT-level controller's runtime: initialization from the measured operating point, and one sample of the DVPP layer, the inner loops and the dc-voltage command.
 
 use super::DerEmt;
-use crate::dc::damping_gain;
 use crate::layer::{self, PfReference};
 use crate::{err, positive, AdpfKind, Mode};
 use dvpp_control::converter::{
     hinf_gains, Abc, ConverterData, Dq, FilterMeasurement, HinfLoop, InnerDesign, InnerLoops, Pll,
 };
 use dvpp_control::VqModel;
+use dvpp_controllers::dc::damping_gain;
 use fmi_export::{Context, ModelError, Store};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
@@ -30,7 +30,7 @@ const REFERENCE_TAU: f64 = 1e-3;
 
 /// Everything `initialize` builds, and the controller's state.
 #[derive(Clone, Serialize, Deserialize)]
-pub(crate) struct Runtime {
+pub struct Runtime {
     mode: Mode,
     pf: PfReference,
     vq: VqModel,
@@ -169,8 +169,8 @@ impl DerEmt {
             tdes: &tdes,
             adpf_p: &adpf_p,
             adpf_q: &adpf_q,
-            params_p: &self.adpf_p,
-            params_q: &self.adpf_q,
+            params_p: &self.adpf_p.read(s)?,
+            params_q: &self.adpf_q.read(s)?,
             s_rated: s[self.s_rated],
             s_dvpp: s[self.s_dvpp],
             pll_tau: positive(s, self.pll_tau, "pll.tau")?,
@@ -374,7 +374,7 @@ impl DerEmt {
             rt.n_lpf,
             self.adpf_p.share.map_or(1.0, |r| s[r]),
             &mut rt.warned_gains,
-            ctx,
+            &mut |n| crate::log(ctx, n),
         )?;
         let p_set = rt.p0.min(self.headroom(s, t));
         let v_dc = s[self.v_dc];

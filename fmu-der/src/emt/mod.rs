@@ -60,8 +60,8 @@ pub struct DerEmt {
     d: Real,
     dq: Real,
     tau_q: Real,
-    adpf_p: crate::adpf::AdpfParams,
-    adpf_q: crate::adpf::AdpfParams,
+    adpf_p: crate::adpf::AdpfVars,
+    adpf_q: crate::adpf::AdpfVars,
     pll_kp: Real,
     pll_ki: Real,
     pll_tau: Real,
@@ -117,7 +117,6 @@ pub struct DerEmt {
     limit_current: Boolean,
     limit_modulation: Boolean,
     limit_source: Boolean,
-    rt: Option<Box<Runtime>>,
 }
 
 impl DerEmt {
@@ -132,6 +131,7 @@ impl DerEmt {
 
 impl Model for DerEmt {
     type Config = DerConfig;
+    type State = Runtime;
     const IDENTIFIER: &'static str = "dvpp_der_emt";
     const NAME: &'static str = "DVPP DER matching controller, EMT level";
     const DESCRIPTION: &'static str = "DVPP unit at EMT level: the DVPP layer (T_des, ADPFs, dc gains) over cascaded capacitor-voltage and converter-current PI loops (option A) and the dc-voltage control, on instantaneous three-phase measurements";
@@ -148,22 +148,24 @@ impl Model for DerEmt {
         DerEmt::declare_variables(config, v)
     }
 
-    fn initialize(&mut self, s: &mut Store, ctx: &mut Context) -> Result<(), ModelError> {
-        self.rt = Some(Box::new(self.build(s, ctx)?));
-        Ok(())
+    fn initialize(
+        &self,
+        _: Option<&Runtime>,
+        s: &mut Store,
+        ctx: &mut Context,
+    ) -> Result<Runtime, ModelError> {
+        self.build(s, ctx)
     }
 
     fn do_step(
-        &mut self,
+        &self,
+        rt: &mut Runtime,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        let mut rt = self.rt.take().ok_or("the controller is not initialized")?;
-        let result = self.step(&mut rt, s, t, h, ctx);
-        self.rt = Some(rt);
-        result
+        self.step(rt, s, t, h, ctx)
     }
 }
 

@@ -1,7 +1,7 @@
 //! The EMT-level controller's variables: every parameter, measurement, command and monitoring output, with its start value.
 
 use super::DerEmt;
-use crate::adpf::AdpfParams;
+use crate::adpf::AdpfVars;
 use crate::unit_vars::{par, tun, DcVars, GainVars, PllVars, SourceVars, UnitVars};
 use crate::{ports, DerConfig, UnitDefaults};
 use dvpp_control::converter::{ConverterData, InnerDesign};
@@ -35,8 +35,8 @@ impl DerEmt {
             dq,
             tau_q,
         } = UnitVars::declare(v, &u);
-        let adpf_p = AdpfParams::declare(v, "p", &u.adpf_p, true);
-        let adpf_q = AdpfParams::declare(v, "q", &u.adpf_q, false);
+        let adpf_p = AdpfVars::declare(v, "p", &u.adpf_p, true);
+        let adpf_q = AdpfVars::declare(v, "q", &u.adpf_q, false);
         let PllVars {
             kp: pll_kp,
             ki: pll_ki,
@@ -394,7 +394,6 @@ impl DerEmt {
                 "limit.source",
                 "the primary source is held at a bound of its availability (p_src_min, p_src_max) while the dc command asks for more",
             ),
-            rt: None,
         })
     }
 }

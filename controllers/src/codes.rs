@@ -1,4 +1,4 @@
-//! The FMU's integer codes (`mode`, `adpf.*.kind`) as enums, converted once from the parameters.
+//! The integer codes of the DVPP units' parameters (`mode`, `adpf.*.kind`) as enums, converted once from the parameters.
 
 /// How the unit connects: the `mode` parameter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]

@@ -1,41 +1,7 @@
-//! What `cargo xtask` builds, bundles and benchmarks: the FMUs, their variants, the benchmarks.
+//! What `cargo xtask` builds, bundles and benchmarks: the FMUs (from `dvpp-catalog`), their variants, the benchmarks.
 
-/// An FMU: the package of its binary (a cdylib and the `<package>-describe` printer in
-/// `<model>/fmu/`), its model identifier, and the directory of its model library (which holds
-/// the golden `modelDescription.xml`).
-pub struct Fmu {
-    pub package: &'static str,
-    pub id: &'static str,
-    pub model: &'static str,
-}
-
-pub const FMUS: &[Fmu] = &[
-    Fmu {
-        package: "fmu-der",
-        id: "dvpp_der",
-        model: "fmu-der",
-    },
-    Fmu {
-        package: "fmu-der-emt",
-        id: "dvpp_der_emt",
-        model: "fmu-der/emt",
-    },
-    Fmu {
-        package: "fmu-operator",
-        id: "dvpp_operator",
-        model: "fmu-operator",
-    },
-    Fmu {
-        package: "fmu-grid",
-        id: "dvpp_grid",
-        model: "fmu-grid",
-    },
-    Fmu {
-        package: "fmu-emt-plant",
-        id: "dvpp_emt_plant",
-        model: "fmu-emt-plant",
-    },
-];
+/// The FMUs: the workspace's one list (`dvpp-catalog`).
+pub use dvpp_catalog::{id, Fmu, FMUS};
 
 /// Another configuration of an FMU, bundled as `dist/variants/<id>-<name>.fmu`.
 pub struct Variant {
@@ -49,7 +15,7 @@ pub struct Variant {
 
 pub const VARIANTS: &[Variant] = &[
     Variant {
-        id: "dvpp_grid",
+        id: id::GRID,
         name: "ieee9",
         config: r#"# The IEEE 9-bus base system: three governed machines, no DER slot, PCC = SG2's output.
 # Event 1 is the 28 MW load step at bus 5 that the grid tests use for the base system's
@@ -70,7 +36,7 @@ dp_mw = 28.0
         files: &[],
     },
     Variant {
-        id: "dvpp_grid",
+        id: id::GRID,
         name: "ieee9_hybrid",
         config: r#"# Case study II: SG2 replaced by a hybrid DVPP at bus 2 (three grid-forming and three
 # grid-following slots); 42 MW load step at bus 2 at t = 1 s.
@@ -80,7 +46,7 @@ case = "ieee9_hybrid"
         files: &[],
     },
     Variant {
-        id: "dvpp_grid",
+        id: id::GRID,
         name: "ieee9_dvpp_file",
         config: r#"# The default case (ieee9_dvpp), read from a case file in resources/ instead of the
 # built-in copy: same variables, same GUID as dist/default/dvpp_grid.fmu.
@@ -90,25 +56,25 @@ case_file = "ieee9_dvpp.toml"
         files: &["fmu-grid/cases/ieee9_dvpp.toml"],
     },
     Variant {
-        id: "dvpp_der",
+        id: id::DER,
         name: "wind",
         config: "# Case study I wind unit: low-pass ADPF with tau = tau_dc = 1.5 s, 46 MVA.\n[model]\npreset = \"wind\"\n",
         files: &[],
     },
     Variant {
-        id: "dvpp_der",
+        id: id::DER,
         name: "pv",
         config: "# Case study I PV unit: low-pass ADPF with tau = tau_dc = 0.6 s, 73 MVA.\n[model]\npreset = \"pv\"\n",
         files: &[],
     },
     Variant {
-        id: "dvpp_der",
+        id: id::DER,
         name: "bess",
         config: "# Case study I BESS: complement of the wind and PV low-pass ADPFs, 60 MVA.\n[model]\npreset = \"bess\"\n",
         files: &[],
     },
     Variant {
-        id: "dvpp_emt_plant",
+        id: id::EMT_PLANT,
         name: "island",
         config: r#"# The EMT plant as an island: one 60 MVA unit feeding a series R-L load of 0.5 + j0.1 pu
 # on its rating, a step of 0.1 + j0.02 pu of its rating at t = 1 s, no Thevenin source.

@@ -372,7 +372,14 @@ fn bundle_scenario(path: &Path) -> Result<PathBuf> {
     }
     let out_dir = root().join("dist").join(&name);
     let mut one = |b: &scenario::Build| -> Result<model_description::ModelDescription> {
-        let xml = bundle_one(b.package, b.id, &b.staging, &b.config, &b.files, &b.out)?;
+        let xml = bundle_one(
+            b.fmu.package,
+            b.fmu.id,
+            &b.staging,
+            &b.config,
+            &b.files,
+            &b.out,
+        )?;
         model_description::ModelDescription::from_xml(&xml).map_err(|e| e.to_string())
     };
     let ssp = scenario::bundle(path, &out_dir, &mut one)?;

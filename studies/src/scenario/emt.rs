@@ -18,10 +18,6 @@ use super::wiring::Wire;
 use super::{real, start_of};
 use emt_plant_model::config::PlantConfig;
 
-/// Package and model identifier of the EMT plant and of the EMT-level DER controller.
-pub(super) const PLANT_FMU: (&str, &str) = ("fmu-emt-plant", "dvpp_emt_plant");
-pub(super) const DER_EMT_FMU: (&str, &str) = ("fmu-der-emt", "dvpp_der_emt");
-
 /// The plant's component name (the grid's role in a phasor system).
 pub(super) const PLANT: &str = "plant";
 
@@ -293,7 +289,7 @@ impl Job<'_, '_> {
                 .as_ref()
                 .map_or(Table::new(), |e| e.start.clone()),
         );
-        let md = self.build(PLANT_FMU, PLANT, model, &start, Vec::new())?;
+        let md = self.build(&dvpp_catalog::EMT_PLANT, PLANT, model, &start, Vec::new())?;
         Ok(Unit {
             name: PLANT.into(),
             md,

@@ -34,8 +34,9 @@
 use dvpp_control::adaptation::{
     reactive_capacity, renormalize_with_floor, renormalize_with_floors,
 };
+use dvpp_control::fleet::Shape;
 use dvpp_control::floor_scale;
-use dvpp_control::{Hold, LtiSimulator, Rotation, TDes};
+use dvpp_control::{Fleet, Hold, LtiSimulator, Rotation, TDes};
 use serde::{Deserialize, Serialize};
 use std::collections::VecDeque;
 use std::fmt;
@@ -82,6 +83,26 @@ fn one() -> f64 {
     1.0
 }
 
+impl Unit {
+    /// The units of `fleet`, grid-forming, whole.
+    pub fn fleet(fleet: &Fleet) -> Vec<Unit> {
+        fleet
+            .units
+            .iter()
+            .map(|u| Unit {
+                name: u.name.clone(),
+                role: match u.kind.shape {
+                    Shape::LowPass => Role::LowPass,
+                    Shape::Complement => Role::Complement,
+                },
+                form: Form::GridForming,
+                s_rated: u.kind.s_rated,
+                share: 1.0,
+            })
+            .collect()
+    }
+}
+
 /// Largest number of points of coupling.
 pub const MAX_POCS: usize = 16;
 
@@ -114,22 +135,11 @@ pub struct Params {
 }
 
 impl Default for Params {
-    /// Case study I: wind and PV low-pass, BESS the complement, all grid-forming, at the PCC;
-    /// the FMU's parameter start values.
+    /// Case study I ([`Fleet::case_study_i`]: wind and PV low-pass, BESS the complement), all
+    /// grid-forming, at the PCC; the FMU's parameter start values.
     fn default() -> Self {
-        let unit = |name: &str, role, s_rated| Unit {
-            name: name.into(),
-            role,
-            form: Form::GridForming,
-            s_rated,
-            share: 1.0,
-        };
         Params {
-            units: vec![
-                unit("wind", Role::LowPass, 46.0),
-                unit("pv", Role::LowPass, 73.0),
-                unit("bess", Role::Complement, 60.0),
-            ],
+            units: Unit::fleet(&Fleet::case_study_i()),
             pocs: 0,
             rot_rx: 0.0,
             s_base: 100.0,

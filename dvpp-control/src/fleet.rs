@@ -110,7 +110,9 @@ impl<'de> Deserialize<'de> for DerKind {
 /// A unit of a fleet: its name and its kind.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct FleetUnit {
+    /// The unit's name in its DVPP (a component name: `wind`, `pv_gfl`, ...).
     pub name: String,
+    /// What the unit is.
     pub kind: DerKind,
 }
 
@@ -118,6 +120,7 @@ pub struct FleetUnit {
 /// from it: [`Fleet::nominal_active_gains`], [`Fleet::reactive_share`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Fleet {
+    /// The units, in the DVPP's order.
     pub units: Vec<FleetUnit>,
 }
 

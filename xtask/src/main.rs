@@ -11,7 +11,7 @@ mod win64;
 
 use dvpp_studies::scenario;
 
-use catalog::{BENCHES, FMUS, VARIANTS};
+use catalog::{BENCHES, FMUS};
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -314,7 +314,7 @@ fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
         bundle_one(fmu.package, fmu.id, fmu.id, config, &[], &out)?;
         written.push(out);
     }
-    for v in VARIANTS
+    for v in catalog::variants()
         .iter()
         .filter(|v| chosen.iter().any(|f| f.id == v.id))
     {
@@ -330,7 +330,7 @@ fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
             fmu.package,
             fmu.id,
             &format!("{}-{}", v.id, v.name),
-            v.config,
+            &v.config,
             &files,
             &out,
         )?;

@@ -310,13 +310,15 @@ mod tests {
     fn the_plant_from_a_thevenin_case_starts_at_its_power_flow() {
         let case = grid_model::Case::builtin("thevenin_dvpp").unwrap();
         let pf = grid_model::Grid::new(&case).unwrap().outputs();
-        let units: Vec<UnitData> = [("wind", 46.0, 1.5), ("pv", 73.0, 0.6), ("bess", 60.0, 0.2)]
-            .map(|(name, s_rated, tau_dc)| UnitData {
-                name: name.into(),
-                s_rated,
-                tau_dc,
+        let units: Vec<UnitData> = dvpp_control::Fleet::case_study_i()
+            .units
+            .iter()
+            .map(|u| UnitData {
+                name: u.name.clone(),
+                s_rated: u.kind.s_rated,
+                tau_dc: u.kind.tau_dc,
             })
-            .into();
+            .collect();
         let (model, start) = plant_from_case(&case, &pf, &units).unwrap();
         let mut doc = Table::new();
         doc.insert("model".into(), Value::Table(model));

@@ -417,7 +417,11 @@ mod tests {
                     continue;
                 }
                 let c = format!("pv{suffix}");
-                assert_eq!(start(&c, der::S_RATED), Some(73.0 * part), "{c}");
+                assert_eq!(
+                    start(&c, der::S_RATED),
+                    Some(dvpp_control::fleet::PV.s_rated * part),
+                    "{c}"
+                );
                 assert_eq!(start(&c, der::P_AVAIL0), Some(0.5 * part), "{c}");
             }
         }

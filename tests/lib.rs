@@ -79,6 +79,7 @@ pub fn cosim() -> PathBuf {
         .join("cosim")
 }
 
+pub mod conformance;
 pub mod digest;
 pub mod mutate;
 

@@ -13,11 +13,14 @@
 pub mod adpf;
 mod codes;
 pub mod dc;
+pub mod emt;
 pub mod layer;
 pub mod operator;
+pub mod unit;
 
 pub use adpf::{AdpfChannel, AdpfParams, ComplementParams};
 pub use codes::{AdpfKind, Mode};
+pub use unit::{DcLinkParams, OperatorGains, PllParams, Rating, SourceParams};
 
 use serde::{Deserialize, Serialize};
 use std::fmt;

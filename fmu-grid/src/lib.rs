@@ -45,6 +45,7 @@ pub mod numerics;
 pub mod ports;
 pub mod powerflow;
 pub mod pss;
+mod variables;
 
 pub use case::{Case, CaseError, DerKind, DerSlot, Event, LoadModel};
 pub use config::{GridConfig, DEFAULT_CASE};
@@ -57,9 +58,10 @@ pub use integration::{MAX_INTERNAL_STEP, MIN_INTERNAL_STEP, STEPS_PER_TIME_CONST
 pub use network::CONST_POWER_V_MIN;
 pub use powerflow::PowerFlow;
 
-use fmi_export::{Boolean, Context, Model, ModelError, Real, Spec, Store, Variables};
+use fmi_export::{Boolean, Context, Model, ModelError, Real, Store, Variables};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
+use variables::{EventVars, MachineVars, RxVars, SlotVars};
 
 /// Start value of the slot limit inputs, and the magnitude from which a limit input means none.
 pub const NO_LIMIT: f64 = 1e6;
@@ -68,50 +70,6 @@ pub const NO_LIMIT: f64 = 1e6;
 /// nominal voltage, far beyond any converter (they run within about 0.8 to 1.2 pu), and low
 /// enough that the slot's current and power stay far from overflowing.
 pub const E_MAX: f64 = 10.0;
-
-/// Handles of one DER slot: its two inputs (θ, E or p_ref, q_ref), its converter's limits and
-/// four outputs.
-#[derive(Clone, Serialize, Deserialize)]
-struct SlotVars {
-    grid_forming: bool,
-    a: Real,
-    b: Real,
-    i_max: Real,
-    /// Grid-forming slots: the active-power range (the converter's dc budget).
-    p_range: Option<(Real, Real)>,
-    p: Real,
-    q: Real,
-    v: Real,
-    v_angle: Real,
-}
-
-/// Handles of the parameters that override one scheduled event.
-#[derive(Clone, Serialize, Deserialize)]
-struct EventVars {
-    enabled: Boolean,
-    time: Real,
-    /// Load steps only: ΔP, ΔQ in pu on S_base.
-    size: Option<(Real, Real)>,
-}
-
-/// Handles of the R/X parameters of the case's `[mv]` lines, and of what they last applied.
-#[derive(Clone, Serialize, Deserialize)]
-struct RxVars {
-    /// `mv.rx`.
-    mv: Real,
-    /// `mv.line[k].rx`, in the order of the `[mv]` group.
-    lines: Vec<Real>,
-}
-
-/// Handles of one machine's outputs.
-#[derive(Clone, Serialize, Deserialize)]
-struct MachineVars {
-    in_service: Boolean,
-    omega: Real,
-    p: Real,
-    q: Real,
-    pm: Real,
-}
 
 /// The grid FMU: the handles of its variables and the grid its configuration builds.
 pub struct GridFmu {
@@ -290,420 +248,37 @@ impl Model for GridFmu {
         let case = config.load_case(resources)?;
         let grid = Grid::new(&case).map_err(|e| format!("case {}: {e}", case.name))?;
         let (sb, f_nom) = (case.base_mva, case.f_nom);
-        v.real(
-            Spec::parameter(
-                "S_base",
-                sb,
-                "MVA",
-                "system base power (fixed by the case file)",
-            )
-            .range(sb, sb),
-        );
-        v.real(
-            Spec::parameter(
-                "f_nom",
-                f_nom,
-                "Hz",
-                "nominal frequency (fixed by the case file)",
-            )
-            .range(f_nom, f_nom),
-        );
-
-        let mut events = Vec::new();
-        for (i, es) in grid.events().iter().enumerate() {
-            let name = |s: &str| format!("event[{}].{s}", i + 1);
-            let what = event_label(&es.event);
-            let enabled = v.boolean(Spec::parameter(
-                &name("enabled"),
-                true,
-                "",
-                &format!("event {}, {what}: false cancels it", i + 1),
-            ));
-            let time = v.real(
-                Spec::parameter(
-                    &name("time"),
-                    es.event.time(),
-                    "s",
-                    &format!("event {}, {what}: time it happens", i + 1),
-                )
-                .min(0.0),
-            );
-            let size = match &es.event {
-                Event::LoadStep { dp_mw, dq_mvar, .. } => Some((
-                    v.real(Spec::parameter(
-                        &name("dP"),
-                        dp_mw / sb,
-                        "pu",
-                        &format!(
-                            "event {}, {what}: added active load on S_base (positive = more load)",
-                            i + 1
-                        ),
-                    )),
-                    v.real(Spec::parameter(
-                        &name("dQ"),
-                        dq_mvar / sb,
-                        "pu",
-                        &format!("event {}, {what}: added reactive load on S_base", i + 1),
-                    )),
-                )),
-                _ => None,
-            };
-            events.push(EventVars {
-                enabled,
-                time,
-                size,
-            });
-        }
-
-        let mut slots = Vec::new();
-        let mut input_auto = Vec::new();
-        for (k, init) in grid.der_initial().iter().enumerate() {
-            input_auto.push(match *init {
+        variables::declare_bases(v, sb, f_nom);
+        let events = (grid.events().iter().enumerate())
+            .map(|(i, es)| EventVars::declare(v, i, es, sb))
+            .collect();
+        let inits = grid.der_initial();
+        let slots = (inits.iter().enumerate())
+            .map(|(k, init)| SlotVars::declare(v, k, init, case.ders[k].bus))
+            .collect();
+        let input_auto = inits
+            .iter()
+            .map(|init| match *init {
                 DerSetpoint::GridForming { theta0, e0 } => (theta0, e0),
                 DerSetpoint::GridFollowing { p0, q0 } => (p0, q0),
-            });
-            let bus = case.ders[k].bus;
-            let (grid_forming, a, b) = match *init {
-                DerSetpoint::GridForming { theta0, e0 } => (
-                    true,
-                    v.real(Spec::input(
-                        &ports::der_theta(k + 1),
-                        theta0,
-                        "rad",
-                        "grid-forming slot: internal voltage angle behind the slot impedance",
-                    )),
-                    v.real(
-                        Spec::input(
-                            &ports::der_e(k + 1),
-                            e0,
-                            "pu",
-                            "grid-forming slot: internal voltage magnitude behind the slot impedance",
-                        )
-                        .range(0.0, E_MAX),
-                    ),
-                ),
-                DerSetpoint::GridFollowing { p0, q0 } => (
-                    false,
-                    v.real(Spec::input(
-                        &ports::der_p_ref(k + 1),
-                        p0,
-                        "pu",
-                        "grid-following slot: active power injected at its bus, on S_base",
-                    )),
-                    v.real(Spec::input(
-                        &ports::der_q_ref(k + 1),
-                        q0,
-                        "pu",
-                        "grid-following slot: reactive power injected at its bus, on S_base",
-                    )),
-                ),
-            };
-            let i_max = v.real(
-                Spec::input(
-                    &ports::der_i_max(k + 1),
-                    NO_LIMIT,
-                    "pu",
-                    "current limit of the slot's converter, pu of the slot rating at 1 pu voltage, enforced in every network solution (1e6 and above: none)",
-                )
-                .min(0.0),
-            );
-            let p_range = grid_forming.then(|| {
-                let p = |v: &mut Variables, name: String, start: f64, desc: &str| {
-                    v.real(Spec::input(&name, start, "pu", desc))
-                };
-                (
-                    p(
-                        v,
-                        ports::der_p_min(k + 1),
-                        -NO_LIMIT,
-                        "lowest active power the slot's converter takes in, on S_base (its dc link's budget; -1e6 and below: none)",
-                    ),
-                    p(
-                        v,
-                        ports::der_p_max(k + 1),
-                        NO_LIMIT,
-                        "highest active power the slot's converter gives, on S_base (its dc link's budget; 1e6 and above: none)",
-                    ),
-                )
-            });
-            slots.push(SlotVars {
-                grid_forming,
-                a,
-                b,
-                i_max,
-                p_range,
-                p: v.real(Spec::output(
-                    &ports::der_p(k + 1),
-                    "pu",
-                    &format!("active power the slot injects into bus {bus}, on S_base"),
-                )),
-                q: v.real(Spec::output(
-                    &ports::der_q(k + 1),
-                    "pu",
-                    &format!("reactive power the slot injects into bus {bus}, on S_base"),
-                )),
-                v: v.real(Spec::output(
-                    &ports::der_v(k + 1),
-                    "pu",
-                    &format!("voltage magnitude at the slot's bus {bus}"),
-                )),
-                v_angle: v.real(Spec::output(
-                    &ports::der_v_angle(k + 1),
-                    "rad",
-                    &format!(
-                        "voltage angle at the slot's bus {bus}, frame rotating at f_nom, unwrapped"
-                    ),
-                )),
-            });
-        }
-
-        let pcc_bus = case
-            .pcc
-            .as_ref()
-            .map(|p| p.bus)
-            .or(case.ders.first().map(|d| d.bus))
-            .unwrap_or(case.buses[0].id);
-        let pcc = [
-            v.real(Spec::output(
-                ports::PCC_P,
-                "pu",
-                "DVPP active power at the PCC (sum of its slots and branches), on S_base",
-            )),
-            v.real(Spec::output(
-                ports::PCC_Q,
-                "pu",
-                "DVPP reactive power at the PCC (sum of its slots and branches), on S_base",
-            )),
-            v.real(Spec::output(
-                ports::PCC_V,
-                "pu",
-                &format!("PCC voltage magnitude (bus {pcc_bus})"),
-            )),
-            v.real(Spec::output(
-                ports::PCC_F,
-                "pu",
-                "PCC frequency, pu of f_nom: rate of change of the PCC voltage angle through \
-                 s/(T_f s + 1), T_f from the case (default 0.02 s)",
-            )),
-        ];
-        let energized = v.boolean(Spec::boolean_output(
-            "energized",
-            "a voltage source is in service (a machine or a grid-forming unit); false: the \
-             network is de-energized, grid-following units alone cannot hold a voltage",
-        ));
-        let coi_f = v.real(Spec::output(
-            "coi.f",
-            "pu",
-            "centre-of-inertia frequency, pu of f_nom: sum H_j omega_j / sum H_j over the \
-             machines in service (pcc.f when none is)",
-        ));
-        let machines = case
-            .machines
-            .iter()
-            .enumerate()
-            .map(|(j, m)| {
-                let name = |s: &str| format!("sg[{}].{s}", j + 1);
-                let label = m
-                    .name
-                    .clone()
-                    .unwrap_or_else(|| format!("machine at bus {}", m.bus));
-                MachineVars {
-                    in_service: v.boolean(Spec::boolean_output(
-                        &name("in_service"),
-                        &format!(
-                            "{label}: connected to the grid (false after a generator trip; \
-                             coi.f and the sys.* totals count connected machines only)"
-                        ),
-                    )),
-                    omega: v.real(Spec::output(
-                        &name("omega"),
-                        "pu",
-                        &format!(
-                            "{label}: rotor speed, pu of f_nom (after a trip: the isolated \
-                             unit's own speed under its governor)"
-                        ),
-                    )),
-                    p: v.real(Spec::output(
-                        &name("p"),
-                        "pu",
-                        &format!("{label}: electrical active power at its terminal, on S_base"),
-                    )),
-                    q: v.real(Spec::output(
-                        &name("q"),
-                        "pu",
-                        &format!("{label}: reactive power at its terminal, on S_base"),
-                    )),
-                    pm: v.real(Spec::output(
-                        &name("pm"),
-                        "pu",
-                        &format!("{label}: mechanical power from its turbine, on S_base"),
-                    )),
-                }
             })
             .collect();
-        let balance = [
-            v.real(Spec::output(
-                "sys.p_gen",
-                "pu",
-                "total generation: machine terminal powers + DER slot injections, on S_base",
-            )),
-            v.real(Spec::output(
-                "sys.p_load",
-                "pu",
-                "total load: loads, event loads and shunt conductances at their present voltage, \
-                 on S_base",
-            )),
-            v.real(Spec::output(
-                "sys.p_loss",
-                "pu",
-                "series losses of lines and transformers, on S_base",
-            )),
-            v.real(Spec::output(
-                "sys.p_mismatch",
-                "pu",
-                "power balance sys.p_gen - sys.p_load - sys.p_loss, on S_base (zero up to the \
-                 network solver tolerance)",
-            )),
-        ];
-        let load_shed = v.real(Spec::output(
-            "sys.load_shed",
-            "1",
-            "share of the power-flow point's load shed by the case's under-frequency load \
-             shedding stages ([[ufls]]), 0 to 1",
-        ));
-        let area_load = (!case.pocs.is_empty()).then(|| {
-            [
-                v.real(Spec::output(
-                    ports::AREA_P_LOAD,
-                    "pu",
-                    "active power the loads inside the area behind the points of coupling draw, on S_base (an operator adds its change to the POC powers: a load step inside the area is not the DVPP's response)",
-                )),
-                v.real(Spec::output(
-                    ports::AREA_Q_LOAD,
-                    "pu",
-                    "reactive power the loads inside the area behind the points of coupling draw, on S_base",
-                )),
-            ]
-        });
-        let pocs = case
-            .pocs
-            .iter()
-            .enumerate()
-            .map(|(k, p)| {
-                let label = p
-                    .name
-                    .clone()
-                    .unwrap_or_else(|| format!("point of coupling {}", k + 1));
-                let bus = p.bus;
-                let through = p.branches.join(", ");
-                let at = match p.side {
-                    case::PocSide::Grid => format!("at bus {bus}"),
-                    case::PocSide::Area => "at their area-side ends".to_string(),
-                };
-                [
-                    v.real(Spec::output(
-                        &ports::poc_p(k + 1),
-                        "pu",
-                        &format!(
-                            "{label}: active power the area sends through {through} towards bus {bus}, measured {at} (positive: into the grid, as pcc.p), on S_base"
-                        ),
-                    )),
-                    v.real(Spec::output(
-                        &ports::poc_q(k + 1),
-                        "pu",
-                        &format!(
-                            "{label}: reactive power the area sends through {through} towards bus {bus}, measured {at}, on S_base"
-                        ),
-                    )),
-                    v.real(Spec::output(
-                        &ports::poc_v(k + 1),
-                        "pu",
-                        &format!("{label}: voltage magnitude at bus {bus}"),
-                    )),
-                    v.real(Spec::output(
-                        &ports::poc_f(k + 1),
-                        "pu",
-                        &format!(
-                            "{label}: frequency at bus {bus}, pu of f_nom, measured as pcc.f (T_f = {} s)",
-                            p.f_filter_t
-                        ),
-                    )),
-                ]
-            })
+        let pcc = variables::declare_pcc(v, &case);
+        let energized = variables::declare_energized(v);
+        let coi_f = variables::declare_coi(v);
+        let machines = (case.machines.iter().enumerate())
+            .map(|(j, m)| MachineVars::declare(v, j, m))
             .collect();
-        let dvpp_pccs = case
-            .dvpp_pccs
-            .iter()
-            .map(|p| {
-                let (name, bus) = (&p.name, p.bus);
-                let slots = p
-                    .slots
-                    .iter()
-                    .map(|k| k.to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                [
-                    v.real(Spec::output(
-                        &ports::dvpp_pcc_p(name),
-                        "pu",
-                        &format!("DVPP {name}: active power of its slots {slots} at its PCC, on S_base"),
-                    )),
-                    v.real(Spec::output(
-                        &ports::dvpp_pcc_q(name),
-                        "pu",
-                        &format!("DVPP {name}: reactive power of its slots {slots} at its PCC, on S_base"),
-                    )),
-                    v.real(Spec::output(
-                        &ports::dvpp_pcc_v(name),
-                        "pu",
-                        &format!("DVPP {name}: voltage magnitude at its PCC (bus {bus})"),
-                    )),
-                    v.real(Spec::output(
-                        &ports::dvpp_pcc_f(name),
-                        "pu",
-                        &format!(
-                            "DVPP {name}: frequency at its PCC (bus {bus}), pu of f_nom, measured as pcc.f (T_f = {} s)",
-                            p.f_filter_t
-                        ),
-                    )),
-                ]
-            })
+        let balance = variables::declare_balance(v);
+        let load_shed = variables::declare_load_shed(v);
+        let area_load = (!case.pocs.is_empty()).then(|| variables::declare_area_load(v));
+        let pocs = (case.pocs.iter().enumerate())
+            .map(|(k, p)| variables::declare_poc(v, k, p))
             .collect();
-        let rx = case.mv.as_ref().map(|mv| {
-            let rx_max = case::RX_MAX;
-            let mv_rx = v.real(
-                Spec::parameter(
-                    ports::MV_RX,
-                    mv.rx,
-                    "",
-                    "R/X ratio of every line of the case's [mv] group that has no ratio of its own (mv.line[k].rx = 0), each line keeping |r + jx|; the power flow is re-solved at initialization",
-                )
-                .range(0.0, rx_max),
-            );
-            let lines = case
-                .mv_line_indices()
-                .into_iter()
-                .enumerate()
-                .map(|(k, i)| {
-                    let l = &case.lines[i];
-                    v.real(
-                        Spec::parameter(
-                            &ports::mv_line_rx(k + 1),
-                            l.rx.unwrap_or(0.0),
-                            "",
-                            &format!(
-                                "R/X ratio of line {} ({}-{}), keeping its |r + jx|; 0: mv.rx",
-                                case.line_name(l),
-                                l.from,
-                                l.to
-                            ),
-                        )
-                        .range(0.0, rx_max),
-                    )
-                })
-                .collect();
-            RxVars { mv: mv_rx, lines }
-        });
+        let dvpp_pccs = (case.dvpp_pccs.iter())
+            .map(|p| variables::declare_dvpp_pcc(v, p))
+            .collect();
+        let rx = case.mv.as_ref().map(|mv| RxVars::declare(v, &case, mv));
         Ok(GridFmu {
             built: grid,
             input_start: input_auto,

@@ -3,14 +3,76 @@
 //!
 //! Events split the sub-steps so they fire exactly at their time.
 
-use super::Grid;
+use super::{Grid, PocRt};
+use crate::der::DerRt;
 use crate::error::GridError;
 use crate::integration::Dae;
 use crate::machine::MachAlg;
+use crate::machine::MachineRt;
 use crate::network::{Injections, Network, Scratch, Solution};
 use crate::numerics::{wrap, C64, EVENT_EPS};
 
-impl Dae for Grid {
+/// The grid's equations at its present inputs, topology and angles: what the integrator steps,
+/// borrowed from the grid beside the states it advances (`x`, `sol`) and its work buffers.
+struct Equations<'a> {
+    machines: &'a [MachineRt],
+    ders: &'a [DerRt],
+    load_s: &'a [C64],
+    net: Option<&'a Network>,
+    t: f64,
+    wb: f64,
+    sb: f64,
+    pcc_bus: usize,
+    pcc_state: usize,
+    pcc_tf: f64,
+    pcc_angle: f64,
+    pocs: &'a [PocRt],
+    poc_angle: &'a [f64],
+}
+
+/// The grid split for one solve or integration step: its equations, its states and solution,
+/// and the work buffers (mutable from `&mut Grid`, shared from `&Grid`).
+macro_rules! split {
+    ($grid:expr) => {{
+        let Grid {
+            machines,
+            ders,
+            load_s,
+            net,
+            t,
+            wb,
+            sb,
+            pcc_bus,
+            pcc_state,
+            pcc_tf,
+            pcc_angle,
+            pocs,
+            poc_angle,
+            x,
+            sol,
+            work,
+            ..
+        } = $grid;
+        let eq = Equations {
+            machines,
+            ders,
+            load_s,
+            net: net.as_ref(),
+            t: *t,
+            wb: *wb,
+            sb: *sb,
+            pcc_bus: *pcc_bus,
+            pcc_state: *pcc_state,
+            pcc_tf: *pcc_tf,
+            pcc_angle: *pcc_angle,
+            pocs,
+            poc_angle,
+        };
+        (eq, x, sol, work)
+    }};
+}
+
+impl Dae for Equations<'_> {
     type Solution = Solution;
     type Scratch = Scratch;
     type Error = GridError;
@@ -21,12 +83,59 @@ impl Dae for Grid {
         self.deriv(x, &sol.v, &sol.alg, dx);
     }
     fn clamp(&self, x: &mut [f64]) {
-        for m in &self.machines {
+        for m in self.machines {
             m.clamp(x);
         }
     }
     fn non_finite(&self) -> GridError {
         GridError::NonFinite { t: self.t }
+    }
+}
+
+impl Equations<'_> {
+    fn injections(&self) -> Injections<'_> {
+        Injections {
+            machines: self.machines,
+            ders: self.ders,
+            load_s: self.load_s,
+        }
+    }
+
+    /// Whether a voltage source is in service (see [`Grid::energized`]).
+    fn energized(&self) -> bool {
+        Grid::has_voltage_source(self.machines, self.ders)
+    }
+
+    /// Network solution for states `x` (see [`Network::solve`]); a de-energized network
+    /// (see [`Grid::energized`]) has every bus voltage 0.
+    fn solve_net(&self, x: &[f64], sol: &mut Solution, w: &mut Scratch) -> Result<(), GridError> {
+        if !self.energized() {
+            // Nothing holds a voltage: current injections alone define no angle (a grid-
+            // following unit follows the voltage it measures), so the network is dead.
+            sol.v.fill(C64::new(0.0, 0.0));
+            return Ok(());
+        }
+        let net = self.net.ok_or(GridError::SingularNetwork)?;
+        net.solve(&self.injections(), x, sol, w, self.t)
+    }
+
+    /// Time derivative `dx` of the state vector at `x`, given its network solution (bus
+    /// voltages `v`, stator solutions `alg`).
+    fn deriv(&self, x: &[f64], v: &[C64], alg: &[MachAlg], dx: &mut Vec<f64>) {
+        dx.clear();
+        dx.resize(x.len(), 0.0);
+        for (m, a) in self.machines.iter().zip(alg) {
+            m.deriv(x, a, dvpp_math::cabs(v[m.bus]), self.wb, self.sb, dx);
+        }
+        // The PCC frequency filter works on the unwrapped angle: its lag behind the angle is
+        // Δω T_f, beyond π at deviations above π/(ω_b T_f) (0.1 pu for T_f = 0.1 s).
+        let i = self.pcc_state;
+        let th = self.pcc_angle + wrap(dvpp_math::carg(v[self.pcc_bus]) - self.pcc_angle);
+        dx[i] = (th - x[i]) / self.pcc_tf;
+        for (k, p) in self.pocs.iter().enumerate() {
+            let th = self.poc_angle[k] + wrap(dvpp_math::carg(v[p.bus]) - self.poc_angle[k]);
+            dx[i + 1 + k] = (th - x[i + 1 + k]) / p.tf;
+        }
     }
 }
 
@@ -51,32 +160,16 @@ impl Grid {
         Ok(())
     }
 
-    /// Network solution for states `x` (see [`Network::solve`]); a de-energized network
-    /// (see [`Grid::energized`]) has every bus voltage 0.
-    fn solve_net(&self, x: &[f64], sol: &mut Solution, w: &mut Scratch) -> Result<(), GridError> {
-        if !self.energized() {
-            // Nothing holds a voltage: current injections alone define no angle (a grid-
-            // following unit follows the voltage it measures), so the network is dead.
-            sol.v.fill(C64::new(0.0, 0.0));
-            return Ok(());
-        }
-        let net = self.net.as_ref().ok_or(GridError::SingularNetwork)?;
-        net.solve(&self.injections(), x, sol, w, self.t)
-    }
-
     /// Re-solve the network at the current state (after input or topology changes).
     pub fn resolve(&mut self) -> Result<(), GridError> {
         self.ensure_lu()?;
         // Solve on a copy: a failed solve leaves the voltages as they were.
-        let mut w = std::mem::take(&mut self.scratch);
-        let mut sol = std::mem::take(&mut self.spare);
-        sol.clone_from(&self.sol);
-        let solved = self.solve_net(&self.x, &mut sol, &mut w);
+        let (eq, x, sol, work) = split!(self);
+        work.spare.clone_from(sol);
+        let solved = eq.solve_net(x, &mut work.spare, &mut work.scratch);
         if solved.is_ok() {
-            std::mem::swap(&mut self.sol, &mut sol);
+            std::mem::swap(sol, &mut work.spare);
         }
-        self.spare = sol;
-        self.scratch = w;
         solved?;
         self.update_angles();
         Ok(())
@@ -95,44 +188,17 @@ impl Grid {
         }
     }
 
-    /// Time derivative `dx` of the state vector at `x`, given its network solution (bus
-    /// voltages `v`, stator solutions `alg`).
-    fn deriv(&self, x: &[f64], v: &[C64], alg: &[MachAlg], dx: &mut Vec<f64>) {
-        dx.clear();
-        dx.resize(x.len(), 0.0);
-        for (m, a) in self.machines.iter().zip(alg) {
-            m.deriv(x, a, dvpp_math::cabs(v[m.bus]), self.wb, self.sb, dx);
-        }
-        // The PCC frequency filter works on the unwrapped angle: its lag behind the angle is
-        // Δω T_f, beyond π at deviations above π/(ω_b T_f) (0.1 pu for T_f = 0.1 s).
-        let i = self.pcc_state;
-        let th = self.pcc_angle + wrap(dvpp_math::carg(v[self.pcc_bus]) - self.pcc_angle);
-        dx[i] = (th - x[i]) / self.pcc_tf;
-        for (k, p) in self.pocs.iter().enumerate() {
-            let th = self.poc_angle[k] + wrap(dvpp_math::carg(v[p.bus]) - self.poc_angle[k]);
-            dx[i + 1 + k] = (th - x[i + 1 + k]) / p.tf;
-        }
-    }
-
     /// One RK4 step of length `h` from the current state, whose network solution is
     /// `self.sol` (left there by the last solve: `resolve` at the start of a communication step,
     /// an event, or the previous sub-step's final solve).
     fn rk4(&mut self, h: f64) -> Result<(), GridError> {
-        let mut x = std::mem::take(&mut self.x);
-        let mut sol = std::mem::take(&mut self.sol);
-        let mut rk = std::mem::take(&mut self.rk4);
-        let mut scratch = std::mem::take(&mut self.scratch);
-        let mut result = Ok(());
-        if sol.alg.len() != self.machines.len() {
+        let (eq, x, sol, work) = split!(self);
+        if sol.alg.len() != eq.machines.len() {
             let mut s = sol.clone();
-            result = self.solve_net(&x, &mut s, &mut scratch);
-            if result.is_ok() {
-                sol = s;
-            }
+            eq.solve_net(x, &mut s, &mut work.scratch)?;
+            *sol = s;
         }
-        let result = result.and_then(|()| rk.step(&*self, &mut x, &mut sol, &mut scratch, h));
-        (self.x, self.sol, self.rk4, self.scratch) = (x, sol, rk, scratch);
-        result?;
+        work.rk4.step(&eq, x, sol, &mut work.scratch, h)?;
         self.update_angles();
         Ok(())
     }
@@ -183,11 +249,12 @@ impl Grid {
 
     /// Largest |derivative| over all states at the current point (0 at an equilibrium).
     pub fn max_derivative(&self) -> Result<f64, GridError> {
+        let (eq, x, sol, _) = split!(self);
         let mut w = Scratch::default();
-        let mut sol = self.sol.clone();
-        self.solve_net(&self.x, &mut sol, &mut w)?;
+        let mut sol = sol.clone();
+        eq.solve_net(x, &mut sol, &mut w)?;
         let mut dx = Vec::new();
-        self.deriv(&self.x, &sol.v, &sol.alg, &mut dx);
+        eq.deriv(x, &sol.v, &sol.alg, &mut dx);
         Ok(dx.iter().fold(0.0, |a, d| a.max(d.abs())))
     }
 }

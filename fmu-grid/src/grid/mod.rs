@@ -149,6 +149,12 @@ pub struct Grid {
     /// Factorized network; a cache, rebuilt on demand (not part of snapshots).
     net: Option<Network>,
     /// Work buffers of the network solves and the integrator; caches (not part of snapshots).
+    work: Work,
+}
+
+/// The buffers the network solves and the integrator reuse, so that a step allocates nothing.
+#[derive(Clone, Debug, Default)]
+struct Work {
     spare: Solution,
     scratch: Scratch,
     rk4: Rk4<Solution>,
@@ -347,9 +353,7 @@ impl Grid {
             h_limit,
             step_note,
             net: None,
-            spare: Solution::default(),
-            scratch: Scratch::default(),
-            rk4: Rk4::default(),
+            work: Work::default(),
         };
         // A network solve from the initialized states must reproduce the power flow.
         g.resolve()?;

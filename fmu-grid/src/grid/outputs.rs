@@ -5,6 +5,7 @@ use super::{Grid, FREQUENCY_BAND, LOSS_OF_SYNCHRONISM_ANGLE};
 use crate::case::{BranchData, DerKind};
 use crate::der::{DerInput, DerRt};
 use crate::error::GridError;
+use crate::machine::MachineRt;
 use crate::machine::{rot, state};
 use crate::numerics::{C64, CONST_POWER_V_MIN};
 use serde::{Deserialize, Serialize};
@@ -105,8 +106,12 @@ impl Grid {
     /// injections alone has no angle reference, and grid-following units, which only follow the
     /// voltage they measure, cannot hold one (they lose synchronism).
     pub fn energized(&self) -> bool {
-        self.machines.iter().any(|m| m.in_service)
-            || self.ders.iter().any(|d| d.kind == DerKind::GridForming)
+        Self::has_voltage_source(&self.machines, &self.ders)
+    }
+
+    /// Whether a machine is in service or a grid-forming unit is connected.
+    pub(super) fn has_voltage_source(machines: &[MachineRt], ders: &[DerRt]) -> bool {
+        machines.iter().any(|m| m.in_service) || ders.iter().any(|d| d.kind == DerKind::GridForming)
     }
 
     pub fn outputs(&self) -> Outputs {

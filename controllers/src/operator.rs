@@ -558,10 +558,28 @@ impl Operator {
     /// and return the operator with its first command (the gains `m` calls for, zero desired
     /// deviations).
     pub fn initialize(params: Params, m: &Measurement) -> Result<(Operator, Command), Error> {
+        Operator::initialize_with(params, m, Warned::default())
+    }
+
+    /// [`Operator::initialize`] again, while the host is still initializing (new parameters or
+    /// inputs): the same, except that a degenerate input `previous` warned of is not warned
+    /// again.
+    pub fn initialize_after(
+        previous: &Operator,
+        params: Params,
+        m: &Measurement,
+    ) -> Result<(Operator, Command), Error> {
+        Operator::initialize_with(params, m, previous.warned.clone())
+    }
+
+    fn initialize_with(
+        params: Params,
+        m: &Measurement,
+        mut warned: Warned,
+    ) -> Result<(Operator, Command), Error> {
         let (t_pf, rot) = params.realize()?;
         m.check(&params)?;
         let mut notices = Vec::new();
-        let mut warned = Warned::default();
         let gains = target(&params, m, &mut warned, 0.0, &mut notices)?;
         let matching = if params.pocs == 0 {
             Matching::Pcc

@@ -255,12 +255,16 @@ impl Model for Operator {
 
     fn initialize(
         &self,
-        _: Option<&library::Operator>,
+        previous: Option<&library::Operator>,
         s: &mut Store,
         ctx: &mut Context,
     ) -> Result<library::Operator, ModelError> {
-        let (op, command) = library::Operator::initialize(self.params(s), &self.measurement(s))
-            .map_err(|e| ModelError(e.to_string()))?;
+        let (params, m) = (self.params(s), self.measurement(s));
+        let (op, command) = match previous {
+            None => library::Operator::initialize(params, &m),
+            Some(previous) => library::Operator::initialize_after(previous, params, &m),
+        }
+        .map_err(|e| ModelError(e.to_string()))?;
         self.write(s, &command, ctx);
         Ok(op)
     }

@@ -86,6 +86,9 @@ pub struct Core<S> {
     pub stop_time: Option<f64>,
     /// A value was set in initialization mode since the model last initialized.
     pub dirty: bool,
+    /// A parameter was set since the model last initialized or stepped (in step mode only
+    /// tunable ones can be): the next step re-reads them ([`Context::tuned`]).
+    pub tuned: bool,
     pub store: Store,
     /// The model's running state: none until the model first initializes.
     pub state: Option<S>,
@@ -154,6 +157,7 @@ impl<M: Model> Instance<M> {
             time: config.experiment.start,
             stop_time: None,
             dirty: true,
+            tuned: false,
             store: vars.start_store(),
             state: None,
         };
@@ -231,6 +235,7 @@ impl<M: Model> Instance<M> {
             Ok(state) => {
                 core.state = Some(state);
                 core.dirty = false;
+                core.tuned = false;
                 ctx.status
             }
             Err(e) => {
@@ -391,6 +396,9 @@ impl<M: Model> Instance<M> {
         let s = &mut self.core.store;
         for (&vr, v) in vrs.iter().zip(values.drain(..)) {
             let i = vr as usize;
+            if self.meta[v.base_type() as usize][i].causality == Causality::Parameter {
+                self.core.tuned = true;
+            }
             match v {
                 Value::Real(x) => s.reals[i] = x,
                 Value::Integer(x) => s.integers[i] = x,
@@ -433,6 +441,7 @@ impl<M: Model> Instance<M> {
             }
         }
         let mut ctx = Context::new(Some(&self.logger));
+        ctx.tuned = self.core.tuned;
         let core = &mut self.core;
         let Some(state) = core.state.as_mut() else {
             return self.error(format!(
@@ -461,6 +470,7 @@ impl<M: Model> Instance<M> {
             ));
         }
         self.core.time = t + h;
+        self.core.tuned = false;
         status
     }
 

@@ -388,6 +388,7 @@ impl std::ops::IndexMut<Boolean> for Store {
 pub struct Context<'a> {
     logger: Option<&'a Logger>,
     pub(crate) status: Status,
+    pub(crate) tuned: bool,
 }
 
 impl<'a> Context<'a> {
@@ -395,7 +396,15 @@ impl<'a> Context<'a> {
         Context {
             logger,
             status: Status::Ok,
+            tuned: false,
         }
+    }
+
+    /// In `do_step`: a parameter was set since the model initialized or last stepped (between
+    /// steps only tunable ones can be), so the model re-reads its tunable parameters; otherwise
+    /// they hold the values the running state was built or last retuned with.
+    pub fn tuned(&self) -> bool {
+        self.tuned
     }
 
     /// Log a warning; the call that is running returns `fmi2Warning` (unless worse).

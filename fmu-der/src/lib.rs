@@ -280,7 +280,9 @@ impl Model for Der {
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        self.retune(unit, s)?;
+        if ctx.tuned() {
+            self.retune(unit, s)?;
+        }
         let command = unit.step(&self.measurement(s, t), &self.gains.read(s), h)?;
         self.write(s, command, ctx);
         Ok(())

@@ -232,7 +232,7 @@ impl Model for DerEmt {
         Ok(unit)
     }
 
-    /// The tunable parameters as they are now, then one sample.
+    /// The tunable parameters when a host set one since the last step, then one sample.
     fn do_step(
         &self,
         unit: &mut EmtUnit,
@@ -241,7 +241,9 @@ impl Model for DerEmt {
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        unit.retune(&self.params(s)?)?;
+        if ctx.tuned() {
+            unit.retune(&self.params(s)?)?;
+        }
         let command = unit.step(&self.measurement(s, t), &self.gains.read(s), h)?;
         self.write(s, command, ctx);
         Ok(())

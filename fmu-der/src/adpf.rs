@@ -15,9 +15,16 @@ pub(crate) struct AdpfVars {
     tau2: Real,
     order: Integer,
     order2: Integer,
-    /// Complement only (p channel): share, number of closed units, their time constants, orders.
-    pub(crate) share: Option<Real>,
-    pub(crate) n_lpf: Option<Integer>,
+    /// Complement only (p channel).
+    complement: Option<ComplementVars>,
+}
+
+/// Handles of a complement ADPF's parameters: the share it closes, the number of low-pass units
+/// it closes, their time constants and orders.
+#[derive(Clone, Serialize, Deserialize)]
+struct ComplementVars {
+    share: Real,
+    n_lpf: Integer,
     lpf_tau: Vec<Real>,
     lpf_order: Vec<Integer>,
 }
@@ -81,55 +88,7 @@ impl AdpfVars {
             )
             .range(1.0, 8.0),
         );
-        let (mut share, mut n_lpf, mut lpf_tau, mut lpf_order) = (None, None, vec![], vec![]);
-        if complement {
-            share = Some(
-                v.real(
-                    Spec::parameter(
-                        &format!("{prefix}.share"),
-                        1.0,
-                        "1",
-                        "complement: total participation c it closes, m = c - sum of the low-pass factors",
-                    )
-                    .range(0.0, 1.0),
-                ),
-            );
-            n_lpf = Some(
-                v.integer(
-                    Spec::parameter(
-                        &format!("{prefix}.n_lpf"),
-                        d.lpf_tau.len() as i32,
-                        "",
-                        "complement: number of low-pass units it closes (gains from mu_p_lpf[k])",
-                    )
-                    .range(0.0, MAX_LPF as f64),
-                ),
-            );
-            for k in 1..=MAX_LPF {
-                lpf_tau.push(
-                    v.real(
-                        Spec::parameter(
-                            &format!("{prefix}.lpf[{k}].tau"),
-                            d.lpf_tau.get(k - 1).copied().unwrap_or(1.0),
-                            "s",
-                            &format!("complement: time constant of low-pass unit {k}"),
-                        )
-                        .min(0.0),
-                    ),
-                );
-                lpf_order.push(
-                    v.integer(
-                        Spec::parameter(
-                            &format!("{prefix}.lpf[{k}].order"),
-                            1,
-                            "",
-                            &format!("complement: order of low-pass unit {k}"),
-                        )
-                        .range(1.0, 8.0),
-                    ),
-                );
-            }
-        }
+        let complement = complement.then(|| ComplementVars::declare(v, prefix, d));
         AdpfVars {
             channel,
             kind,
@@ -137,31 +96,12 @@ impl AdpfVars {
             tau2,
             order,
             order2,
-            share,
-            n_lpf,
-            lpf_tau,
-            lpf_order,
+            complement,
         }
     }
 
     /// The channel's parameters as they are now; an unknown `adpf.*.kind` code is refused by name.
     pub(crate) fn read(&self, s: &Store) -> Result<AdpfParams, ModelError> {
-        let complement = match (self.share, self.n_lpf) {
-            (Some(share), Some(n_lpf)) => {
-                let mut c = ComplementParams {
-                    share: s[share],
-                    n_lpf: s[n_lpf] as usize,
-                    lpf_tau: [0.0; MAX_LPF],
-                    lpf_order: [0; MAX_LPF],
-                };
-                for k in 0..MAX_LPF {
-                    c.lpf_tau[k] = s[self.lpf_tau[k]];
-                    c.lpf_order[k] = s[self.lpf_order[k]] as u32;
-                }
-                Some(c)
-            }
-            _ => None,
-        };
         Ok(AdpfParams {
             channel: self.channel,
             kind: self.kind(s)?,
@@ -169,7 +109,7 @@ impl AdpfVars {
             tau2: s[self.tau2],
             order: s[self.order] as u32,
             order2: s[self.order2] as u32,
-            complement,
+            complement: self.complement.as_ref().map(|c| c.read(s)),
         })
     }
 
@@ -177,5 +117,73 @@ impl AdpfVars {
     pub(crate) fn kind(&self, s: &Store) -> Result<AdpfKind, ModelError> {
         AdpfKind::from_code(s[self.kind])
             .map_err(|e| err(&format!("{}.kind", self.channel.prefix()), e))
+    }
+}
+
+impl ComplementVars {
+    fn declare(v: &mut Variables, prefix: &str, d: &AdpfDefaults) -> Self {
+        let share = v.real(
+            Spec::parameter(
+                &format!("{prefix}.share"),
+                1.0,
+                "1",
+                "complement: total participation c it closes, m = c - sum of the low-pass factors",
+            )
+            .range(0.0, 1.0),
+        );
+        let n_lpf = v.integer(
+            Spec::parameter(
+                &format!("{prefix}.n_lpf"),
+                d.lpf_tau.len() as i32,
+                "",
+                "complement: number of low-pass units it closes (gains from mu_p_lpf[k])",
+            )
+            .range(0.0, MAX_LPF as f64),
+        );
+        let (mut lpf_tau, mut lpf_order) = (vec![], vec![]);
+        for k in 1..=MAX_LPF {
+            lpf_tau.push(
+                v.real(
+                    Spec::parameter(
+                        &format!("{prefix}.lpf[{k}].tau"),
+                        d.lpf_tau.get(k - 1).copied().unwrap_or(1.0),
+                        "s",
+                        &format!("complement: time constant of low-pass unit {k}"),
+                    )
+                    .min(0.0),
+                ),
+            );
+            lpf_order.push(
+                v.integer(
+                    Spec::parameter(
+                        &format!("{prefix}.lpf[{k}].order"),
+                        1,
+                        "",
+                        &format!("complement: order of low-pass unit {k}"),
+                    )
+                    .range(1.0, 8.0),
+                ),
+            );
+        }
+        ComplementVars {
+            share,
+            n_lpf,
+            lpf_tau,
+            lpf_order,
+        }
+    }
+
+    fn read(&self, s: &Store) -> ComplementParams {
+        let mut c = ComplementParams {
+            share: s[self.share],
+            n_lpf: s[self.n_lpf] as usize,
+            lpf_tau: [0.0; MAX_LPF],
+            lpf_order: [0; MAX_LPF],
+        };
+        for k in 0..MAX_LPF {
+            c.lpf_tau[k] = s[self.lpf_tau[k]];
+            c.lpf_order[k] = s[self.lpf_order[k]] as u32;
+        }
+        c
     }
 }

@@ -21,73 +21,43 @@ pub use dvpp_controllers::{AdpfKind, Mode, MAX_LPF};
 pub use preset::{Preset, Shape, UnitDefaults, PRESETS};
 
 use adpf::AdpfVars;
-use dvpp_controllers::phasor::{
-    DcRange, OutputStage, PhasorCommand, PhasorMeasurement, PhasorParams, PhasorUnit, QPiParams,
-    SlotImpedance, StartupParams,
-};
-use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Variables};
+use dvpp_controllers::phasor::{PhasorCommand, PhasorParams, PhasorUnit};
+use fmi_export::{Context, Model, ModelError, Real, Store, Variables};
 use serde::{Deserialize, Serialize};
-use unit_vars::{DcVars, GainVars, PllVars, SourceVars, UnitVars};
+use unit_vars::{DcVars, GainVars, PllVars, QPiVars, SourceVars, UnitVars};
+use variables::{
+    DcRangeVars, EnergyOutputs, LimitFlags, LinkOutputs, MeasuredVars, Outputs, RotationVars,
+    SlotVars, StageVars, StartupVars,
+};
 
-/// The DER's variable handles; its running state (`Model::State`) is the [`PhasorUnit`].
+/// The DER's variable handles, in groups; its running state (`Model::State`) is the [`PhasorUnit`].
 #[derive(Clone, Serialize, Deserialize)]
 pub struct Der {
     /// Rating and bases, mode, `T_des`.
     unit: UnitVars,
-    r_f: Real,
-    x_f: Real,
+    slot: SlotVars,
     adpf_p: AdpfVars,
     adpf_q: AdpfVars,
     pll: PllVars,
-    qpi_kp: Real,
-    qpi_ki: Real,
-    e_max: Real,
+    qpi: QPiVars,
     dc: DcVars,
-    v_dc_min: Real,
-    v_dc_max: Real,
-    t_budget: Real,
-    i_max: Real,
-    delay_c: Real,
-    vi_r: Real,
-    priority: Integer,
-    current_tau: Real,
-    vq_tau: Real,
-    v_sync: Real,
-    t_hold: Real,
-    ramp: Real,
+    dc_range: DcRangeVars,
+    /// The output stage and `vi.r`.
+    stage: StageVars,
+    startup: StartupVars,
     source: SourceVars,
+    /// `dispatch.dP`.
     redispatch: Real,
-    p: Real,
-    q: Real,
-    v: Real,
-    v_angle: Real,
+    /// The measured bus quantities.
+    measured: MeasuredVars,
     /// The operator's dc gains.
     gains: GainVars,
-    theta: Real,
-    e: Real,
-    df: Real,
-    p_ref: Real,
-    p_set: Real,
-    q_ref: Real,
-    p_avail: Real,
-    v_dc: Real,
-    p_dc: Real,
-    i_ac: Real,
-    i_limit: Real,
-    p_min: Real,
-    p_max: Real,
-    e_src: Real,
-    e_ac: Real,
-    e_loss: Real,
-    w_dc: Real,
-    limit_current: Boolean,
-    limit_dc: Boolean,
-    limit_source: Boolean,
-    limit_modulation: Boolean,
-    synchronized: Boolean,
-    rot_rx: Real,
-    p_rot: Real,
-    q_rot: Real,
+    out: Outputs,
+    link: LinkOutputs,
+    energy: EnergyOutputs,
+    flags: LimitFlags,
+    /// Rotational power control (declared last).
+    rot: RotationVars,
 }
 
 /// Structure of the DER: which of the paper's units it is.
@@ -128,48 +98,19 @@ impl Der {
             rating: self.unit.rating(s),
             mode: self.unit.mode(s)?,
             tdes: self.unit.tdes(s),
-            slot: SlotImpedance {
-                r_f: s[self.r_f],
-                x_f: s[self.x_f],
-            },
+            slot: self.slot.read(s),
             adpf_p: self.adpf_p.read(s)?,
             adpf_q: self.adpf_q.read(s)?,
             pll: self.pll.read(s),
-            qpi: self.qpi(s),
+            qpi: self.qpi.read_phasor(s),
             dc: self.dc.read(s),
-            dc_range: DcRange {
-                v_min: s[self.v_dc_min],
-                v_max: s[self.v_dc_max],
-                t_budget: s[self.t_budget],
-            },
+            dc_range: self.dc_range.read(s),
             source: self.source.read(s),
-            stage: self.stage(s)?,
-            vi_r: s[self.vi_r],
-            startup: StartupParams {
-                v_sync: s[self.v_sync],
-                t_hold: s[self.t_hold],
-                ramp: s[self.ramp],
-            },
-            rot_rx: s[self.rot_rx],
+            stage: self.stage.read(s)?,
+            vi_r: s[self.stage.vi_r],
+            startup: self.startup.read(s),
+            rot_rx: s[self.rot.rx],
             redispatch: s[self.redispatch],
-        })
-    }
-
-    fn qpi(&self, s: &Store) -> QPiParams {
-        QPiParams {
-            kp: s[self.qpi_kp],
-            ki: s[self.qpi_ki],
-            e_max: s[self.e_max],
-        }
-    }
-
-    fn stage(&self, s: &Store) -> Result<OutputStage, ModelError> {
-        Ok(OutputStage {
-            i_max: s[self.i_max],
-            priority: Priority::from_code(s[self.priority])?,
-            delay_c: s[self.delay_c],
-            current_tau: s[self.current_tau],
-            vq_tau: s[self.vq_tau],
         })
     }
 
@@ -177,8 +118,8 @@ impl Der {
     fn retune(&self, unit: &mut PhasorUnit, s: &Store) -> Result<(), ModelError> {
         let (pll, source) = (self.pll.read(s), self.source.read(s));
         unit.set_pll_gains(pll.kp, pll.ki);
-        unit.set_voltage_matching(self.qpi(s));
-        unit.set_output_stage(self.stage(s)?);
+        unit.set_voltage_matching(self.qpi.read_phasor(s));
+        unit.set_output_stage(self.stage.read(s)?);
         unit.set_availability(
             source.deload,
             source.p_avail0,
@@ -189,47 +130,38 @@ impl Der {
         Ok(())
     }
 
-    fn measurement(&self, s: &Store, t: f64) -> PhasorMeasurement {
-        PhasorMeasurement {
-            t,
-            p: s[self.p],
-            q: s[self.q],
-            v: s[self.v],
-            v_angle: s[self.v_angle],
-        }
-    }
-
     /// The command into the outputs, its notices into the log.
     fn write(&self, s: &mut Store, c: PhasorCommand, ctx: &mut Context) {
+        let (o, link, energy, flags) = (&self.out, &self.link, &self.energy, &self.flags);
         for (r, x) in [
-            (self.theta, c.theta),
-            (self.e, c.e),
-            (self.df, c.df),
-            (self.p_ref, c.p_ref),
-            (self.p_set, c.p_set),
-            (self.q_ref, c.q_ref),
-            (self.p_avail, c.p_avail),
-            (self.v_dc, c.v_dc),
-            (self.p_dc, c.p_dc),
-            (self.i_ac, c.i_ac),
-            (self.i_limit, c.i_limit),
-            (self.p_min, c.p_min),
-            (self.p_max, c.p_max),
-            (self.e_src, c.energy_source),
-            (self.e_ac, c.energy_ac),
-            (self.e_loss, c.energy_loss),
-            (self.w_dc, c.energy_stored),
-            (self.p_rot, c.p_rot),
-            (self.q_rot, c.q_rot),
+            (o.theta, c.theta),
+            (o.e, c.e),
+            (o.df, c.df),
+            (o.p_ref, c.p_ref),
+            (o.p_set, c.p_set),
+            (o.q_ref, c.q_ref),
+            (o.p_avail, c.p_avail),
+            (link.v_dc, c.v_dc),
+            (link.p_dc, c.p_dc),
+            (link.i_ac, c.i_ac),
+            (link.i_limit, c.i_limit),
+            (link.p_min, c.p_min),
+            (link.p_max, c.p_max),
+            (energy.source, c.energy_source),
+            (energy.ac, c.energy_ac),
+            (energy.loss, c.energy_loss),
+            (energy.stored, c.energy_stored),
+            (self.rot.p_rot, c.p_rot),
+            (self.rot.q_rot, c.q_rot),
         ] {
             s[r] = x;
         }
         for (r, x) in [
-            (self.limit_current, c.limit_current),
-            (self.limit_dc, c.limit_dc),
-            (self.limit_source, c.limit_source),
-            (self.limit_modulation, c.limit_modulation),
-            (self.synchronized, c.synchronized),
+            (flags.current, c.limit_current),
+            (flags.dc, c.limit_dc),
+            (flags.source, c.limit_source),
+            (flags.modulation, c.limit_modulation),
+            (flags.synchronized, c.synchronized),
         ] {
             s[r] = x;
         }
@@ -265,7 +197,7 @@ impl Model for Der {
         s: &mut Store,
         ctx: &mut Context,
     ) -> Result<PhasorUnit, ModelError> {
-        let m = self.measurement(s, 0.0);
+        let m = self.measured.read(s, 0.0);
         let (unit, command) =
             PhasorUnit::initialize(&self.params(s)?, &m, &self.gains.read(s), previous)?;
         self.write(s, command, ctx);
@@ -283,7 +215,7 @@ impl Model for Der {
         if ctx.tuned() {
             self.retune(unit, s)?;
         }
-        let command = unit.step(&self.measurement(s, t), &self.gains.read(s), h)?;
+        let command = unit.step(&self.measured.read(s, t), &self.gains.read(s), h)?;
         self.write(s, command, ctx);
         Ok(())
     }

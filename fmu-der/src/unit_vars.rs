@@ -1,4 +1,4 @@
-//! The variables both DER controllers declare alike (the phasor `Der` and the EMT-level `DerEmt`): rating and bases, mode and `T_des`, the PLL, the dc side, the primary source, the operator's dc gains.
+//! The variables both DER controllers declare alike (the phasor `Der` and the EMT-level `DerEmt`): rating and bases, mode and `T_des`, the PLL, the dc side, the primary source, the operator's dc gains, and the q PI's handles.
 
 use crate::{err, ports, Mode, UnitDefaults, MAX_LPF};
 use dvpp_controllers::layer::TDesParams;
@@ -408,6 +408,92 @@ impl GainVars {
             mu_p: s[self.mu_p],
             mu_q: s[self.mu_q],
             mu_p_lpf,
+        }
+    }
+}
+
+/// The grid-forming PI matching controller on `E`: `qpi.kp`, `qpi.ki`, `E_max` (tunable). The
+/// phasor and the EMT-level DER hold the same three handles and read them alike; each declares
+/// them with its own start values, texts and order (their model descriptions are fixed).
+#[derive(Clone, Copy, Serialize, Deserialize)]
+pub(crate) struct QPiVars {
+    pub(crate) kp: Real,
+    pub(crate) ki: Real,
+    pub(crate) e_max: Real,
+}
+
+impl QPiVars {
+    /// The phasor DER's: `E_max` limits the imposed voltage (the modulation limit).
+    pub(crate) fn declare_phasor(v: &mut Variables) -> Self {
+        let kp = tun(
+            v,
+            "qpi.kp",
+            0.05,
+            "pu",
+            "grid-forming PI matching controller: proportional gain from q error to E",
+            0.0,
+        );
+        let e_max = tun(
+            v,
+            "E_max",
+            1.5,
+            "pu",
+            "grid-forming: modulation limit, the largest voltage magnitude the converter can impose at the nominal dc voltage (E <= E_max * v_dc)",
+            0.0,
+        );
+        let ki = tun(
+            v,
+            "qpi.ki",
+            5.0,
+            "1/s",
+            "grid-forming PI matching controller: integral gain from q error to E",
+            0.0,
+        );
+        QPiVars { kp, ki, e_max }
+    }
+
+    /// The EMT-level DER's: `E` is the capacitor-voltage reference.
+    pub(crate) fn declare_emt(v: &mut Variables) -> Self {
+        let kp = tun(
+            v,
+            "qpi.kp",
+            0.05,
+            "pu",
+            "grid-forming PI matching controller: proportional gain from the q error to the capacitor-voltage reference E",
+            0.0,
+        );
+        let ki = tun(
+            v,
+            "qpi.ki",
+            0.5,
+            "1/s",
+            "grid-forming PI matching controller: integral gain from the q error to E",
+            0.0,
+        );
+        let e_max = tun(
+            v,
+            "E_max",
+            1.5,
+            "pu",
+            "grid-forming: largest capacitor-voltage reference E the matching controller sets",
+            0.0,
+        );
+        QPiVars { kp, ki, e_max }
+    }
+
+    pub(crate) fn read_phasor(&self, s: &Store) -> dvpp_controllers::phasor::QPiParams {
+        dvpp_controllers::phasor::QPiParams {
+            kp: s[self.kp],
+            ki: s[self.ki],
+            e_max: s[self.e_max],
+        }
+    }
+
+    pub(crate) fn read_emt(&self, s: &Store) -> dvpp_controllers::emt::QPiParams {
+        dvpp_controllers::emt::QPiParams {
+            kp: s[self.kp],
+            ki: s[self.ki],
+            e_max: s[self.e_max],
         }
     }
 }

@@ -47,78 +47,41 @@
 mod variables;
 
 use crate::adpf::AdpfVars;
-use crate::unit_vars::{DcVars, GainVars, PllVars, SourceVars, UnitVars};
+use crate::unit_vars::{DcVars, GainVars, PllVars, QPiVars, SourceVars, UnitVars};
 use crate::{log, DerConfig};
-use dvpp_control::converter::{Abc, InnerDesign};
-use dvpp_controllers::emt::{
-    EmtCommand, EmtMeasurement, EmtParams, EmtUnit, FilterParams, InnerKind, QPiParams,
-};
-use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Variables};
+use dvpp_controllers::emt::{EmtCommand, EmtParams, EmtUnit, InnerKind};
+use fmi_export::{Context, Integer, Model, ModelError, Real, Store, Variables};
+use variables::{CircuitVars, Commands, InnerVars, LimitFlags, Measurements, Outputs};
 
-/// The EMT-level controller's variable handles (its running state is the unit, `EmtUnit`).
+/// The EMT-level controller's variable handles, in groups (its running state is the unit,
+/// `EmtUnit`).
 pub struct DerEmt {
     unit: UnitVars,
     adpf_p: AdpfVars,
     adpf_q: AdpfVars,
     pll: PllVars,
-    /// `qpi.kp`, `qpi.ki`, `E_max`.
-    qpi: [Real; 3],
+    qpi: QPiVars,
     vq_tau: Real,
-    /// `R_f`, `L_f`, `C_f`, `R_t`, `L_t`.
-    filter: [Real; 5],
-    vdc_ratio: Real,
-    vi_r: Real,
-    /// `inner.current_hz`, `inner.voltage_hz`, `inner.zero_ratio`, `I_max`.
-    inner: [Real; 4],
+    /// The filter, the transformer and `vdc_ratio`.
+    circuit: CircuitVars,
+    /// The inner loops' design and `vi.r`.
+    inner: InnerVars,
     t_s: Real,
     dc: DcVars,
     source: SourceVars,
-    v_abc: [Real; 3],
-    i_abc: [Real; 3],
-    ig_abc: [Real; 3],
-    v_dc: Real,
+    measured: Measurements,
     gains: GainVars,
+    commands: Commands,
     out: Outputs,
     /// Option A (0) or B (1) for the grid-forming v-q matching.
     inner_kind: Integer,
-}
-
-/// The command's variables.
-struct Outputs {
-    m_abc: [Real; 3],
-    i_dc_ref: Real,
-    /// `p_src_min`, `p_src_max`.
-    p_src: [Real; 2],
-    p: Real,
-    q: Real,
-    v: Real,
-    df: Real,
-    theta: Real,
-    e: Real,
-    p_set: Real,
-    q_ref: Real,
-    p_avail: Real,
-    i_ac: Real,
-    /// `limit.current`, `limit.modulation`, `limit.source`.
-    limit: [Boolean; 3],
-}
-
-/// The three phases of an input.
-fn abc(s: &Store, r: &[Real; 3]) -> Abc {
-    Abc {
-        a: s[r[0]],
-        b: s[r[1]],
-        c: s[r[2]],
-    }
+    limit: LimitFlags,
 }
 
 impl DerEmt {
     /// The parameters as they are now; an unknown code (`mode`, `adpf.*.kind`, `inner.kind`)
     /// is refused by name.
     fn params(&self, s: &Store) -> Result<EmtParams, ModelError> {
-        let [qpi_kp, qpi_ki, e_max] = self.qpi;
-        let [r_f, l_f, c_f, r_t, l_t] = self.filter;
-        let [current_hz, voltage_hz, zero_ratio, i_max] = self.inner;
         Ok(EmtParams {
             rating: self.unit.rating(s),
             mode: self.unit.mode(s)?,
@@ -126,27 +89,12 @@ impl DerEmt {
             adpf_p: self.adpf_p.read(s)?,
             adpf_q: self.adpf_q.read(s)?,
             pll: self.pll.read(s),
-            qpi: QPiParams {
-                kp: s[qpi_kp],
-                ki: s[qpi_ki],
-                e_max: s[e_max],
-            },
+            qpi: self.qpi.read_emt(s),
             vq_tau: s[self.vq_tau],
-            filter: FilterParams {
-                r_f: s[r_f],
-                l_f: s[l_f],
-                c_f: s[c_f],
-                r_t: s[r_t],
-                l_t: s[l_t],
-            },
-            vdc_ratio: s[self.vdc_ratio],
-            vi_r: s[self.vi_r],
-            inner: InnerDesign {
-                current_hz: s[current_hz],
-                voltage_hz: s[voltage_hz],
-                zero_ratio: s[zero_ratio],
-                i_max: s[i_max],
-            },
+            filter: self.circuit.filter(s),
+            vdc_ratio: s[self.circuit.vdc_ratio],
+            vi_r: s[self.inner.vi_r],
+            inner: self.inner.read(s),
             inner_kind: InnerKind::from_code(s[self.inner_kind])?,
             t_s: s[self.t_s],
             dc: self.dc.read(s),
@@ -154,26 +102,16 @@ impl DerEmt {
         })
     }
 
-    fn measurement(&self, s: &Store, t: f64) -> EmtMeasurement {
-        EmtMeasurement {
-            t,
-            v_c: abc(s, &self.v_abc),
-            i_f: abc(s, &self.i_abc),
-            i_g: abc(s, &self.ig_abc),
-            v_dc: s[self.v_dc],
-        }
-    }
-
     /// The command into the outputs, its notices into the log.
     fn write(&self, s: &mut Store, c: EmtCommand, ctx: &mut Context) {
-        let o = &self.out;
-        for (&r, x) in o.m_abc.iter().zip(c.m_abc) {
+        let (cmd, o, limit) = (&self.commands, &self.out, &self.limit);
+        for (&r, x) in cmd.m_abc.iter().zip(c.m_abc) {
             s[r] = x;
         }
         for (r, x) in [
-            (o.i_dc_ref, c.i_dc_ref),
-            (o.p_src[0], c.p_src_min),
-            (o.p_src[1], c.p_src_max),
+            (cmd.i_dc_ref, c.i_dc_ref),
+            (cmd.p_src[0], c.p_src_min),
+            (cmd.p_src[1], c.p_src_max),
             (o.p, c.p),
             (o.q, c.q),
             (o.v, c.v),
@@ -187,11 +125,11 @@ impl DerEmt {
         ] {
             s[r] = x;
         }
-        for (&r, x) in o
-            .limit
-            .iter()
-            .zip([c.limit_current, c.limit_modulation, c.limit_source])
-        {
+        for (r, x) in [
+            (limit.current, c.limit_current),
+            (limit.modulation, c.limit_modulation),
+            (limit.source, c.limit_source),
+        ] {
             s[r] = x;
         }
         for n in c.notices {
@@ -226,7 +164,7 @@ impl Model for DerEmt {
         s: &mut Store,
         ctx: &mut Context,
     ) -> Result<EmtUnit, ModelError> {
-        let m = self.measurement(s, 0.0);
+        let m = self.measured.read(s, 0.0);
         let (unit, command) = EmtUnit::initialize(&self.params(s)?, &m, &self.gains.read(s))?;
         self.write(s, command, ctx);
         Ok(unit)
@@ -244,7 +182,7 @@ impl Model for DerEmt {
         if ctx.tuned() {
             unit.retune(&self.params(s)?)?;
         }
-        let command = unit.step(&self.measurement(s, t), &self.gains.read(s), h)?;
+        let command = unit.step(&self.measured.read(s, t), &self.gains.read(s), h)?;
         self.write(s, command, ctx);
         Ok(())
     }

@@ -1,11 +1,12 @@
 //! The EMT-level controller's variables: every parameter, measurement, command and monitoring output, with its start value.
 
-use super::{DerEmt, Outputs};
+use super::DerEmt;
 use crate::adpf::AdpfVars;
-use crate::unit_vars::{par, tun, DcVars, GainVars, PllVars, SourceVars, UnitVars};
+use crate::unit_vars::{par, tun, DcVars, GainVars, PllVars, QPiVars, SourceVars, UnitVars};
 use crate::{ports, DerConfig, UnitDefaults};
-use dvpp_control::converter::{ConverterData, InnerDesign};
-use fmi_export::{Spec, Variables};
+use dvpp_control::converter::{Abc, ConverterData, InnerDesign};
+use dvpp_controllers::emt::{EmtMeasurement, FilterParams};
+use fmi_export::{Boolean, Real, Spec, Store, Variables};
 
 /// Phase suffixes of the three-phase connectors.
 const PHASES: [&str; 3] = ["a", "b", "c"];
@@ -22,36 +23,11 @@ impl DerEmt {
         v: &mut Variables,
     ) -> Result<DerEmt, String> {
         let u = UnitDefaults::of(config.preset).resized(config.rating)?;
-        let paper = ConverterData::PAPER;
-        let inner = InnerDesign::default();
         let unit = UnitVars::declare(v, &u);
         let adpf_p = AdpfVars::declare(v, "p", &u.adpf_p, true);
         let adpf_q = AdpfVars::declare(v, "q", &u.adpf_q, false);
         let pll = PllVars::declare(v);
-        let qpi_kp = tun(
-            v,
-            "qpi.kp",
-            0.05,
-            "pu",
-            "grid-forming PI matching controller: proportional gain from the q error to the capacitor-voltage reference E",
-            0.0,
-        );
-        let qpi_ki = tun(
-            v,
-            "qpi.ki",
-            0.5,
-            "1/s",
-            "grid-forming PI matching controller: integral gain from the q error to E",
-            0.0,
-        );
-        let e_max = tun(
-            v,
-            "E_max",
-            1.5,
-            "pu",
-            "grid-forming: largest capacitor-voltage reference E the matching controller sets",
-            0.0,
-        );
+        let qpi = QPiVars::declare_emt(v);
         let vq_tau = tun(
             v,
             "vq.tau",
@@ -60,6 +36,73 @@ impl DerEmt {
             "grid-following: time constant of the voltage deviation ahead of the v-q droop (as the phasor DER); 0 = none",
             0.0,
         );
+        let circuit = CircuitVars::declare(v);
+        let inner = InnerVars::declare(v);
+        let t_s = par(
+            v,
+            "t_s",
+            50e-6,
+            "s",
+            "the host's step, for the output at initialization only (later outputs use the step the host takes)",
+            1e-9,
+        );
+        let dc = DcVars::declare(v, &u);
+        let source = SourceVars::declare(v, &u);
+        let measured = Measurements::declare(v);
+        let gains = GainVars::declare(v, &u);
+        let commands = Commands::declare(v);
+        let out = Outputs::declare(v);
+        let inner_kind = v.integer(
+            Spec::parameter(
+                "inner.kind",
+                0,
+                "",
+                "grid-forming: the matching controller's v-q part, 0 = option A (the q PI, the capacitor-voltage and converter-current PI loops), 1 = option B (the LPV H-infinity state feedback of dvpp-control's hinf_gains, scheduled on mu_q: docs/hinf.md)",
+            )
+            .range(0.0, 1.0),
+        );
+        let limit = LimitFlags::declare(v);
+        Ok(DerEmt {
+            unit,
+            adpf_p,
+            adpf_q,
+            pll,
+            qpi,
+            vq_tau,
+            circuit,
+            inner,
+            t_s,
+            dc,
+            source,
+            measured,
+            gains,
+            commands,
+            out,
+            inner_kind,
+            limit,
+        })
+    }
+}
+
+/// An output that depends on every measurement at initialization.
+fn output(v: &mut Variables, name: &str, unit: &str, desc: &str) -> Real {
+    v.real(Spec::output(name, unit, desc).initial_dependencies(&MEASUREMENTS))
+}
+
+/// The circuit the converter drives: the filter `R_f`, `L_f`, `C_f`, the LV/MV transformer `R_t`,
+/// `L_t`, and the converter's dc-to-ac voltage ratio `vdc_ratio` (the paper's data as start values).
+pub(crate) struct CircuitVars {
+    pub(crate) r_f: Real,
+    pub(crate) l_f: Real,
+    pub(crate) c_f: Real,
+    pub(crate) r_t: Real,
+    pub(crate) l_t: Real,
+    pub(crate) vdc_ratio: Real,
+}
+
+impl CircuitVars {
+    fn declare(v: &mut Variables) -> Self {
+        let paper = ConverterData::PAPER;
         let filter = |v: &mut Variables, name: &str, start: f64, desc: &str, min: f64| {
             par(v, name, start, "pu", &format!("{desc}, pu on S_rated"), min)
         };
@@ -94,6 +137,41 @@ impl DerEmt {
             "nominal dc voltage over the rated phase-to-neutral peak voltage, v_dc*/v_r: the converter's phase voltage is m * v_dc * vdc_ratio/2",
             1e-3,
         );
+        CircuitVars {
+            r_f,
+            l_f,
+            c_f,
+            r_t,
+            l_t,
+            vdc_ratio,
+        }
+    }
+
+    /// The filter and the transformer.
+    pub(crate) fn filter(&self, s: &Store) -> FilterParams {
+        FilterParams {
+            r_f: s[self.r_f],
+            l_f: s[self.l_f],
+            c_f: s[self.c_f],
+            r_t: s[self.r_t],
+            l_t: s[self.l_t],
+        }
+    }
+}
+
+/// The inner loops' design (`inner.current_hz`, `inner.voltage_hz`, `inner.zero_ratio`,
+/// `I_max`) and, ahead of them, the grid-forming virtual resistance `vi.r`.
+pub(crate) struct InnerVars {
+    pub(crate) vi_r: Real,
+    pub(crate) current_hz: Real,
+    pub(crate) voltage_hz: Real,
+    pub(crate) zero_ratio: Real,
+    pub(crate) i_max: Real,
+}
+
+impl InnerVars {
+    fn declare(v: &mut Variables) -> Self {
+        let inner = InnerDesign::default();
         let vi_r = tun(
             v,
             "vi.r",
@@ -134,16 +212,37 @@ impl DerEmt {
             "current limit: the converter-current reference's magnitude, pu of the rated current",
             1e-3,
         );
-        let t_s = par(
-            v,
-            "t_s",
-            50e-6,
-            "s",
-            "the host's step, for the output at initialization only (later outputs use the step the host takes)",
-            1e-9,
-        );
-        let dc = DcVars::declare(v, &u);
-        let source = SourceVars::declare(v, &u);
+        InnerVars {
+            vi_r,
+            current_hz,
+            voltage_hz,
+            zero_ratio,
+            i_max,
+        }
+    }
+
+    /// The inner loops' design.
+    pub(crate) fn read(&self, s: &Store) -> InnerDesign {
+        InnerDesign {
+            current_hz: s[self.current_hz],
+            voltage_hz: s[self.voltage_hz],
+            zero_ratio: s[self.zero_ratio],
+            i_max: s[self.i_max],
+        }
+    }
+}
+
+/// The three-phase measurements (inputs): capacitor voltage, converter-side and grid-side
+/// currents, and the dc-link voltage.
+pub(crate) struct Measurements {
+    pub(crate) v_abc: [Real; 3],
+    pub(crate) i_abc: [Real; 3],
+    pub(crate) ig_abc: [Real; 3],
+    pub(crate) v_dc: Real,
+}
+
+impl Measurements {
+    fn declare(v: &mut Variables) -> Self {
         // Start values: a balanced 1 pu capacitor voltage at angle 0 and no current (the unit
         // at no load), so that the FMU initializes and steps on its own.
         let three = |v: &mut Variables, prefix: &str, start: [f64; 3], desc: &str| {
@@ -184,19 +283,51 @@ impl DerEmt {
             )
             .min(0.0),
         );
-        let gains = GainVars::declare(v, &u);
-        let out = |v: &mut Variables, name: &str, unit: &str, desc: &str| {
-            v.real(Spec::output(name, unit, desc).initial_dependencies(&MEASUREMENTS))
+        Measurements {
+            v_abc,
+            i_abc,
+            ig_abc,
+            v_dc,
+        }
+    }
+
+    /// The measurement at time `t`.
+    pub(crate) fn read(&self, s: &Store, t: f64) -> EmtMeasurement {
+        let abc = |r: &[Real; 3]| Abc {
+            a: s[r[0]],
+            b: s[r[1]],
+            c: s[r[2]],
         };
+        EmtMeasurement {
+            t,
+            v_c: abc(&self.v_abc),
+            i_f: abc(&self.i_abc),
+            i_g: abc(&self.ig_abc),
+            v_dc: s[self.v_dc],
+        }
+    }
+}
+
+/// The commands to the host's converter and source: modulation indices, the dc source's current
+/// command and the bounds of the source's power.
+pub(crate) struct Commands {
+    pub(crate) m_abc: [Real; 3],
+    pub(crate) i_dc_ref: Real,
+    /// `p_src_min`, `p_src_max`.
+    pub(crate) p_src: [Real; 2],
+}
+
+impl Commands {
+    fn declare(v: &mut Variables) -> Self {
         let m_abc = PHASES.map(|ph| {
-            out(
+            output(
                 v,
                 &format!("m_{ph}"),
                 "1",
                 &format!("modulation index of phase {ph}, within [-1, 1]: the converter's phase voltage is m * v_dc * vdc_ratio/2 (pu of v_r); for the step after this output"),
             )
         });
-        let i_dc_ref = out(
+        let i_dc_ref = output(
             v,
             "i_dc_ref",
             "pu",
@@ -207,135 +338,145 @@ impl DerEmt {
             ("p_src_max", "highest", "P_avail"),
         ]
         .map(|(name, which, what)| {
-            out(
+            output(
                 v,
                 name,
                 "pu",
                 &format!("the {which} power the primary source can deliver now, on S_rated ({what}): for the host's source model"),
             )
         });
-        let p = out(
+        Commands {
+            m_abc,
+            i_dc_ref,
+            p_src,
+        }
+    }
+}
+
+/// The DVPP layer's monitoring outputs: powers and voltage at the MV side, the frame, the set
+/// points, the availability and the converter current.
+pub(crate) struct Outputs {
+    pub(crate) p: Real,
+    pub(crate) q: Real,
+    pub(crate) v: Real,
+    pub(crate) df: Real,
+    pub(crate) theta: Real,
+    pub(crate) e: Real,
+    pub(crate) p_set: Real,
+    pub(crate) q_ref: Real,
+    pub(crate) p_avail: Real,
+    pub(crate) i_ac: Real,
+}
+
+impl Outputs {
+    fn declare(v: &mut Variables) -> Self {
+        let p = output(
             v,
             ports::P,
             "pu",
             "active power into the grid at the MV side of the transformer, on S_base (computed from v_c and i_g)",
         );
-        let q = out(
+        let q = output(
             v,
             ports::Q,
             "pu",
             "reactive power into the grid at the MV side of the transformer, on S_base",
         );
-        let vv = out(
+        let vv = output(
             v,
             ports::V,
             "pu",
             "voltage magnitude at the MV side of the transformer, pu of nominal",
         );
-        let df = out(
+        let df = output(
             v,
             "df",
             "pu",
             "the unit's frequency deviation, pu of f_nom (grid-forming: its frame's; grid-following: the PLL's)",
         );
-        let theta = out(
+        let theta = output(
             v,
             ports::THETA,
             "rad",
             "the frame's angle beyond 2 pi f_nom t (grid-forming: from m^-1 T_pf; grid-following: the PLL's)",
         );
-        let e = out(
+        let e = output(
             v,
             ports::E,
             "pu",
             "grid-forming: the capacitor-voltage reference magnitude the matching controller sets",
         );
-        let p_set = out(
+        let [p_set, q_ref, p_avail, i_ac] = Self::set_points(v);
+        Outputs {
+            p,
+            q,
+            v: vv,
+            df,
+            theta,
+            e,
+            p_set,
+            q_ref,
+            p_avail,
+            i_ac,
+        }
+    }
+
+    /// `p_set`, `q_ref`, `p_avail`, `i_ac`.
+    fn set_points(v: &mut Variables) -> [Real; 4] {
+        let p_set = output(
             v,
             ports::P_SET,
             "pu",
             "the active set point on S_base: the dispatch (p at initialization), curtailed to deload * P_avail - G_dc",
         );
-        let q_ref = out(
+        let q_ref = output(
             v,
             ports::Q_REF,
             "pu",
             "the reactive power reference on S_base (q0 - T_vq dv)",
         );
-        let p_avail = out(
+        let p_avail = output(
             v,
             ports::P_AVAIL,
             "pu",
             "available active power of the primary source, on S_base",
         );
-        let i_ac = out(
+        let i_ac = output(
             v,
             ports::I_AC,
             "pu",
             "magnitude of the converter-side current, pu of the rated current",
         );
-        let inner_kind = v.integer(
-            Spec::parameter(
-                "inner.kind",
-                0,
-                "",
-                "grid-forming: the matching controller's v-q part, 0 = option A (the q PI, the capacitor-voltage and converter-current PI loops), 1 = option B (the LPV H-infinity state feedback of dvpp-control's hinf_gains, scheduled on mu_q: docs/hinf.md)",
-            )
-            .range(0.0, 1.0),
+        [p_set, q_ref, p_avail, i_ac]
+    }
+}
+
+/// The limit flags (boolean outputs).
+pub(crate) struct LimitFlags {
+    pub(crate) current: Boolean,
+    pub(crate) modulation: Boolean,
+    pub(crate) source: Boolean,
+}
+
+impl LimitFlags {
+    fn declare(v: &mut Variables) -> Self {
+        let mut flag = |name: &str, desc: &str| v.boolean(Spec::boolean_output(name, desc));
+        let current = flag(
+            "limit.current",
+            "option A: the converter-current reference is held at I_max; option B (inner.kind = 1, no current limit): the converter current is beyond I_max",
         );
-        let flag =
-            |v: &mut Variables, name: &str, desc: &str| v.boolean(Spec::boolean_output(name, desc));
-        let limit = [
-            (
-                "limit.current",
-                "option A: the converter-current reference is held at I_max; option B (inner.kind = 1, no current limit): the converter current is beyond I_max",
-            ),
-            (
-                "limit.modulation",
-                "the converter voltage is held at the modulation limit",
-            ),
-            (
-                "limit.source",
-                "the primary source is held at a bound of its availability (p_src_min, p_src_max) while the dc command asks for more",
-            ),
-        ]
-        .map(|(name, desc)| flag(v, name, desc));
-        Ok(DerEmt {
-            unit,
-            adpf_p,
-            adpf_q,
-            pll,
-            qpi: [qpi_kp, qpi_ki, e_max],
-            vq_tau,
-            filter: [r_f, l_f, c_f, r_t, l_t],
-            vdc_ratio,
-            vi_r,
-            inner: [current_hz, voltage_hz, zero_ratio, i_max],
-            t_s,
-            dc,
+        let modulation = flag(
+            "limit.modulation",
+            "the converter voltage is held at the modulation limit",
+        );
+        let source = flag(
+            "limit.source",
+            "the primary source is held at a bound of its availability (p_src_min, p_src_max) while the dc command asks for more",
+        );
+        LimitFlags {
+            current,
+            modulation,
             source,
-            v_abc,
-            i_abc,
-            ig_abc,
-            v_dc,
-            gains,
-            out: Outputs {
-                m_abc,
-                i_dc_ref,
-                p_src,
-                p,
-                q,
-                v: vv,
-                df,
-                theta,
-                e,
-                p_set,
-                q_ref,
-                p_avail,
-                i_ac,
-                limit,
-            },
-            inner_kind,
-        })
+        }
     }
 }

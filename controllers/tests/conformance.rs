@@ -1,4 +1,4 @@
-//! The host-conformance test of the EMT-level unit: reference trajectories of `EmtUnit` in closed loop with the EMT plant's circuit (stiff grid, weak grid, island; options A and B), replayed through `EmtUnit` bit for bit; and the unit's contracts with a host (its state saved and restored, parameters refused by name, retuning).
+//! The host-conformance test of the EMT-level unit: reference trajectories of `EmtUnit` in closed loop with the EMT plant's circuit (stiff grid, weak grid, island; options A and B grid-forming, grid-following on the stiff and the weak grid), replayed through `EmtUnit` bit for bit; and the unit's contracts with a host (its state saved and restored, parameters refused by name, retuning).
 //!
 //! Each case's trajectory (tests/conformance/NAME.txt, format in
 //! `dvpp_controllers::emt::trajectory`) holds every input the unit received and every output it
@@ -53,10 +53,9 @@ struct Case {
     kind: InnerKind,
 }
 
-/// Option A and option B grid-forming on every grid. Grid-following units are not stable on
-/// the plant's Thevenin circuit today (a flat start at SCR 166, 55 or 2.5 grows into an
-/// oscillation of the PLL and the current references within 0.5 s), so no case has one.
-const CASES: [Case; 6] = [
+/// Option A and option B grid-forming on every grid; grid-following (its current loop is
+/// option A's) on the stiff and the weak grid (an island has no voltage to follow).
+const CASES: [Case; 8] = [
     Case {
         name: "stiff_gfm_a",
         grid: Grid::Stiff,
@@ -93,10 +92,23 @@ const CASES: [Case; 6] = [
         mode: Mode::GridForming,
         kind: InnerKind::OptionB,
     },
+    Case {
+        name: "stiff_gfl",
+        grid: Grid::Stiff,
+        mode: Mode::GridFollowing,
+        kind: InnerKind::OptionA,
+    },
+    Case {
+        name: "weak_gfl",
+        grid: Grid::Weak,
+        mode: Mode::GridFollowing,
+        kind: InnerKind::OptionA,
+    },
 ];
 
 /// The generic unit of the FMU's start values (a 60 MVA grid-forming unit with static ADPFs,
-/// the paper's filter and transformer), in `mode` with `kind`.
+/// the paper's filter and transformer), in `mode` with `kind`; grid-following with `vq.tau` =
+/// 2 s (the v-q droop's lag; 0.5 s is not stable on weak grids, docs/emt.md).
 fn unit_params(mode: Mode, kind: InnerKind) -> EmtParams {
     let adpf = |channel, complement| AdpfParams {
         channel,
@@ -142,7 +154,10 @@ fn unit_params(mode: Mode, kind: InnerKind) -> EmtParams {
             ki: 0.5,
             e_max: 1.5,
         },
-        vq_tau: 0.5,
+        vq_tau: match mode {
+            Mode::GridForming => 0.5,
+            Mode::GridFollowing => 2.0,
+        },
         filter: FilterParams {
             r_f: 0.01,
             l_f: 0.11,

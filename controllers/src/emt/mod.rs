@@ -45,11 +45,22 @@ const V_DC_FLOOR: f64 = 0.05;
 const HINF_TRIP: f64 = 1.5;
 
 /// Grid-following: time constant (s) of the voltages the current reference is computed from.
-/// The reference `conj(S/v_g) + jωC_f v_c` taken from the instantaneous voltages closes a loop
-/// through the LCL resonance (710 Hz) that the current loop's 1.5 samples of delay make
-/// unstable (measured: a 50 µs, 800 Hz loop diverges from rounding noise within 30 ms); the
-/// lag keeps the reference an outer-loop quantity, as the phasor DER's references are.
+/// The reference taken from the instantaneous voltages closes a loop through the LCL resonance
+/// (710 Hz) that the current loop's 1.5 samples of delay make unstable (measured: a 50 µs,
+/// 800 Hz loop diverges from rounding noise within 30 ms); the lag keeps the reference an
+/// outer-loop quantity, as the phasor DER's references are.
 const REFERENCE_TAU: f64 = 1e-3;
+
+/// Grid-following: time constant (s) of the lag through which the p-f reference model reads
+/// the PLL's frequency. The PLL's frequency `k_p e + k_i ∫e` passes the angle of the unit's own
+/// voltage at the gain `k_p` up to hundreds of Hz, and the model's inertia `2H s/(τ_pll s + 1)²`
+/// turns it into power: on a weak grid the loop (power, voltage angle through the grid's
+/// reactance, PLL, inertia) has a gain of `X 2H k_p/(ω_b τ_pll²)` ≈ 68 at SCR 3 above 10 Hz and
+/// crosses over near 650 Hz, where the reference lag, the current loop and the delay take the
+/// phase past -180° (docs/emt.md, grid-following on weak grids). Through this lag it stays
+/// below 1 before that; measured stable from SCR 1.5 to 500 with the whole DVPP's inertia on
+/// one unit (0.05 s is not at SCR 1.5).
+const FREQUENCY_TAU: f64 = 0.1;
 
 /// One sample of the measurements (pu on `S_rated`, instantaneous), at time `t` (s).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
@@ -139,6 +150,11 @@ pub struct EmtUnit {
     /// frame), from which the current reference is computed.
     vg_lag: Dq,
     vc_lag: Dq,
+    /// Grid-following: the PLL's frequency deviation through `FREQUENCY_TAU` (pu), which the
+    /// p-f reference model reads.
+    df_lag: f64,
+    /// Grid-following: the last sample's reactive current reference was held at `I_max`.
+    limited: bool,
     /// The converter voltage the last output asked for (dq, pu), for the converter power.
     v_m: Dq,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
@@ -266,6 +282,8 @@ impl EmtUnit {
             dv_lag: 0.0,
             vg_lag: vg,
             vc_lag: fm.v_c,
+            df_lag: 0.0,
+            limited: false,
             v_m,
             i_g_prev: fm.i_g,
             vg_prev: vg,
@@ -406,7 +424,7 @@ impl EmtUnit {
         let p_set = self.p0.min(self.headroom(t));
         let v_dc = m.v_dc;
         let v_m_max = 0.5 * p.vdc_ratio * v_dc.max(0.0);
-        let (v_m, df_next) = match &mut self.pf {
+        let (v_m, df_next, reference_limited) = match &mut self.pf {
             PfReference::Forming(pf) => {
                 layer::set_p_gains(pf, p.adpf_p.kind, gains.mu_p, &lpf[..n_lpf])?;
                 let (df, dtheta) =
@@ -460,38 +478,54 @@ impl EmtUnit {
                     let v_ref = Dq { d: self.e, q: 0.0 } - fm.i_g * p.vi_r;
                     self.inner.step(&fm, v_ref, omega, v_m_max, h)
                 });
-                (v_m, df)
+                (v_m, df, false)
             }
             PfReference::Following(fp) => {
                 layer::set_p_gains(fp, p.adpf_p.kind, gains.mu_p, &lpf[..n_lpf])?;
-                let dp = fp.step(self.df, h) / to_dvpp;
+                let dp = fp.step(self.df_lag, h) / to_dvpp;
                 let tau_v = p.vq_tau;
                 let kv = if tau_v > 0.0 {
                     -dvpp_math::expm1(-h / tau_v)
                 } else {
                     1.0
                 };
-                self.dv_lag += kv * (dv - self.dv_lag);
+                // While the reactive current is limited, the voltage deviation's lag does not
+                // move further from zero (anti-windup: the reactive reference it drives cannot
+                // be delivered, and would hold the active current at zero after the voltage
+                // returns).
+                let step = kv * (dv - self.dv_lag);
+                if !(self.limited && step * self.dv_lag > 0.0) {
+                    self.dv_lag += step;
+                }
                 self.q_ref = self.q0 + self.vq.step(self.dv_lag, h) / to_dvpp;
-                // The grid-side current for the references at the measured voltage, plus the
-                // capacitor's current: the converter-side current reference.
+                // The grid-side current for the references at the measured voltage magnitude,
+                // in the PLL's frame (the d axis on the voltage): the PLL alone places the
+                // current. Taken as `conj(S/v_g)` from the voltage's dq value, the current would
+                // turn with the voltage's angle through `REFERENCE_TAU`, a second synchronization
+                // of about 160 Hz bandwidth that the unit's own current moves on a weak grid
+                // (docs/emt.md, grid-following on weak grids).
                 let k = -dvpp_math::expm1(-h / REFERENCE_TAU);
                 self.vg_lag = self.vg_lag + (vg - self.vg_lag) * k;
                 self.vc_lag = self.vc_lag + (fm.v_c - self.vc_lag) * k;
                 let (pr, qr) = ((p_set + dp) / to_base, self.q_ref / to_base);
-                let u = self.vg_lag;
-                let n2 = (u.d * u.d + u.q * u.q).max(1e-4);
+                let u = self.vg_lag.norm().max(1e-2);
                 let i_g = Dq {
-                    d: (u.d * pr + u.q * qr) / n2,
-                    q: (u.q * pr - u.d * qr) / n2,
+                    d: pr / u,
+                    q: -qr / u,
                 };
-                let i_ref = i_g + self.vc_lag.rot90() * (omega * p.filter.c_f);
+                // Plus the capacitor's current: the converter-side reference, limited to I_max
+                // reactive current first.
+                let raw = i_g + self.vc_lag.rot90() * (omega * p.filter.c_f);
+                let (i_ref, limited, reactive) = reactive_first(raw, p.inner.i_max);
+                self.limited = reactive;
                 let v_m = self.inner.current(&fm, i_ref, omega, v_m_max, h);
                 let pll = self.pll.as_mut().expect("grid-following PLL");
                 pll.kp = p.pll.kp;
                 pll.ki = p.pll.ki;
                 pll.step(self.vg_lag.to_abc(rho), h);
-                (v_m, pll.delta_f())
+                let df = pll.delta_f();
+                self.df_lag += -dvpp_math::expm1(-h / FREQUENCY_TAU) * (df - self.df_lag);
+                (v_m, df, limited)
             }
         };
         // The dc-voltage command: converter power and link losses fed forward, k_dc on the
@@ -537,7 +571,7 @@ impl EmtUnit {
             limit_current: match self.hinf {
                 // Option B does not limit its current: the flag says it is beyond I_max.
                 Some(_) => i_ac > p.inner.i_max,
-                None => self.inner.current_limited(),
+                None => reference_limited || self.inner.current_limited(),
             },
             limit_modulation: self.hinf.as_ref().map_or(
                 self.inner.modulation_limited(),
@@ -553,6 +587,19 @@ impl EmtUnit {
 /// relation in the frame turning at `omega` pu).
 fn grid_voltage(p: &EmtParams, m: &FilterMeasurement, omega: f64) -> Dq {
     m.v_c - m.i_g * p.filter.r_t - m.i_g.rot90() * (omega * p.filter.l_t)
+}
+
+/// A grid-following unit's converter-current reference `raw` (dq in the PLL's frame: d active,
+/// q reactive) within `I_max`, reactive current first: `|i_q| ≤ I_max`, then
+/// `|i_d| ≤ √(I_max² - i_q²)`; whether it was limited, and whether its reactive current was. In
+/// a dip the voltage-reactive reference keeps the current it asks for and the active current
+/// yields (the priority of the reactive current in fault ride-through that grid codes ask, e.g.
+/// VDE-AR-N 4120).
+fn reactive_first(raw: Dq, i_max: f64) -> (Dq, bool, bool) {
+    let q = raw.q.clamp(-i_max, i_max);
+    let d_max = (i_max * i_max - q * q).max(0.0).sqrt();
+    let d = raw.d.clamp(-d_max, d_max);
+    (Dq { d, q }, d != raw.d || q != raw.q, q != raw.q)
 }
 
 /// The voltage behind the virtual resistance, `v_c + r_v i_g`: the grid-forming frame and `E`

@@ -100,8 +100,8 @@ pub struct BenchTopo {
     pub thevenin: bool,
     /// The parallel line is in service.
     pub parallel: bool,
-    /// The fault is applied.
-    pub fault: bool,
+    /// Bit `j`: the fault's branch `j` is connected (its phases in [`FaultKind`]'s order).
+    pub fault: u8,
     /// The converter voltage's α, β turn at `ω_b` over a step instead of being held.
     pub rotating_hold: bool,
 }
@@ -113,7 +113,7 @@ enum Role {
     Thevenin,
     Line,
     Parallel,
-    Fault,
+    Fault(usize),
 }
 
 /// An inductive branch: `(L/ω_b) i' = dᵀ z - R i + aᵀ V`.
@@ -375,7 +375,7 @@ impl Bench {
         }
         if let Some(f) = d.fault {
             let node = if f.at_source_bus { BUS } else { PCC };
-            for &(z, inc) in &fault {
+            for (j, &(z, inc)) in fault.iter().enumerate() {
                 // The branch's voltage Σ_x inc_x v_x in αβ0 components.
                 let mut volt = Vec::new();
                 let (mut a, mut b, mut o) = (0.0, 0.0, 0.0);
@@ -397,7 +397,7 @@ impl Bench {
                     w: 2.0 / 3.0,
                     drive: vec![],
                     volt,
-                    role: Role::Fault,
+                    role: Role::Fault(j),
                 });
             }
         }
@@ -446,7 +446,7 @@ impl Bench {
             Role::Load(j) => topo.loads >> j & 1 == 1,
             Role::Thevenin => topo.thevenin,
             Role::Parallel => topo.parallel && (self.data.line.is_some() || topo.thevenin),
-            Role::Fault => topo.fault,
+            Role::Fault(j) => topo.fault >> j & 1 == 1,
         }
     }
 
@@ -556,7 +556,7 @@ impl Bench {
             let q = match b.role {
                 Role::Unit | Role::Thevenin | Role::Line | Role::Parallel => &mut loss,
                 Role::Load(_) => &mut loads,
-                Role::Fault => &mut fault,
+                Role::Fault(_) => &mut fault,
             };
             sym(q, b.z, b.z, rw);
             for &(j, c) in &b.drive {
@@ -631,6 +631,16 @@ impl Bench {
         let [th, line, par] = self.grid_currents(x);
         let first = if self.data.line.is_some() { line } else { th };
         [0, 1, 2].map(|a| first[a] + par[a])
+    }
+
+    /// The fault's branches: each one's current (as its state), in [`FaultKind`]'s order.
+    pub fn fault_branch_currents(&self, x: &[f64]) -> Vec<f64> {
+        self.built.fault.iter().map(|(z, _)| x[*z]).collect()
+    }
+
+    /// All of the fault's branches (the bits of [`BenchTopo::fault`]).
+    pub fn fault_all(&self) -> u8 {
+        ((1u16 << self.built.fault.len()) - 1) as u8
     }
 
     /// The fault's current per phase, leaving the faulted node (pu on `S_base`).

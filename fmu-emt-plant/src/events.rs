@@ -42,6 +42,7 @@ struct FaultVars {
     x: Real,
     t: Real,
     duration: Real,
+    clearing: Integer,
 }
 
 /// Handles of the test bench's variables.
@@ -66,6 +67,9 @@ pub(crate) struct BenchFixed {
     par_off: Option<f64>,
     /// The fault is applied / cleared.
     fault: Option<(f64, f64)>,
+    /// Each faulted phase's branch opens at its current's first zero after the clearing time
+    /// (as a breaker pole), rather than all at once.
+    at_current_zero: bool,
 }
 
 const PHASES: [&str; 3] = ["a", "b", "c"];
@@ -104,7 +108,8 @@ impl Plant {
             r: v.real(Spec::parameter("fault.R", 0.0, "pu", "test bench: fault resistance per faulted phase, on S_base").min(0.0)),
             x: v.real(Spec::parameter("fault.X", 0.001, "pu", "test bench: fault reactance per faulted phase, on S_base (> 0: the faulted node joins only inductive branches; 0.001 is a bolted fault)").min(0.0)),
             t: par(v, "fault.t", 1.0, "s", "test bench: the fault is applied at the first step boundary at or after this time"),
-            duration: v.real(Spec::parameter("fault.duration", 0.15, "s", "test bench: the fault is cleared (its current interrupted) at the first step boundary at or after fault.t + fault.duration").min(0.0)),
+            duration: v.real(Spec::parameter("fault.duration", 0.15, "s", "test bench: the fault is cleared from the first step boundary at or after fault.t + fault.duration (see fault.clearing)").min(0.0)),
+            clearing: int(v, "fault.clearing", 0, 0.0, 1.0, "test bench: how the fault is cleared: 0 = each faulted branch opens at the first step boundary after its current crossed zero (as a breaker pole), 1 = all at once (the currents of the inductive branches jump so KCL holds; the magnetic energy released is energy.switching)"),
         };
         let grounding = layout
             .units
@@ -256,6 +261,7 @@ impl Plant {
             let open = finite(sv.t_open, "thevenin.t_open")?;
             t_open = (open >= 0.0).then_some(open);
         }
+        let mut at_current_zero = true;
         let fault = match kind {
             None => None,
             Some(kind) => {
@@ -279,6 +285,14 @@ impl Plant {
                     ))
                 })?;
                 let t = finite(fv.t, "fault.t")?;
+                let clearing = s[fv.clearing];
+                if !(0..=1).contains(&clearing) {
+                    return Err(format!(
+                        "parameter 'fault.clearing' = {clearing} must be 0 (at current zero) or 1 (at once)"
+                    )
+                    .into());
+                }
+                at_current_zero = clearing == 0;
                 let dur = non_negative(s, fv.duration, "fault.duration")?;
                 Some((
                     Fault {
@@ -314,6 +328,7 @@ impl Plant {
             par_on,
             par_off,
             fault: fault.map(|f| f.1),
+            at_current_zero,
         }))
     }
 }
@@ -327,9 +342,14 @@ impl Fixed {
             loads: self.topology(t).loads,
             thevenin: self.thevenin_on && !reached(t, b.t_open),
             parallel: reached(t, b.par_on) && !reached(t, b.par_off),
-            fault: b
+            fault: if b
                 .fault
-                .is_some_and(|(on, off)| t >= on - tol && t < off - tol),
+                .is_some_and(|(on, off)| t >= on - tol && t < off - tol)
+            {
+                b.bench.fault_all()
+            } else {
+                0
+            },
             rotating_hold: self.rotating_hold,
         }
     }
@@ -342,7 +362,7 @@ impl Fixed {
             loads: self.topology(0.0).loads,
             thevenin: self.thevenin_on,
             parallel: b.par_on.is_some_and(|at| at <= 0.0),
-            fault: false,
+            fault: 0,
             rotating_hold: self.rotating_hold,
         }
     }
@@ -466,6 +486,7 @@ impl Plant {
             p_m,
             df_lag: 0.0,
             btopo: topo0,
+            fault_last: Vec::new(),
         };
         for u in &self.units {
             s[u.m_clamped] = false;
@@ -496,13 +517,30 @@ impl Plant {
             bf.bench.ensure_built();
         }
         let fixed = &*fixed;
-        let b = &fixed.bench.as_ref().expect("the bench is configured").bench;
-        let topo = fixed.bench_topology(t);
+        let bf = fixed.bench.as_ref().expect("the bench is configured");
+        let (b, bf_zero) = (&bf.bench, bf.at_current_zero);
+        let mut topo = fixed.bench_topology(t);
         let was = run.btopo;
+        // Clearing at current zero: a branch stays until its current changed sign over the last
+        // step (it is then within one step's change of zero).
+        if let (true, Some((_, off))) = (bf_zero, fixed.bench.as_ref().and_then(|b| b.fault)) {
+            if reached(t, Some(off)) && was.fault != 0 {
+                let now = b.fault_branch_currents(&run.x);
+                for (j, (i1, i0)) in now.iter().zip(&run.fault_last).enumerate() {
+                    if was.fault >> j & 1 == 1 && i0 * i1 > 0.0 {
+                        topo.fault |= 1 << j;
+                    }
+                }
+            }
+        }
         if topo != was {
             for (now, what) in [
-                (topo.fault && !was.fault, "fault applied"),
-                (was.fault && !topo.fault, "fault cleared"),
+                (topo.fault != 0 && was.fault == 0, "fault applied"),
+                (
+                    was.fault & !topo.fault != 0 && topo.fault != 0,
+                    "a fault branch opened",
+                ),
+                (was.fault != 0 && topo.fault == 0, "fault cleared"),
                 (
                     was.thevenin && !topo.thevenin,
                     "the source's breaker opened",
@@ -557,6 +595,7 @@ impl Plant {
         run.x.copy_from_slice(z1.rows(0, nx).as_slice());
         run.e = [z1[b.e()], z1[b.e() + 1]];
         run.btopo = topo;
+        run.fault_last = b.fault_branch_currents(&z.as_slice()[..nx]);
         let v = b.vpcc(&topo, &z1);
         run.meter(fixed, [v[0], v[1]], h);
         self.write_outputs_bench(fixed, run, s);

@@ -53,8 +53,17 @@
 //! after `load[j].t_on` (0: from the start, negative or `load[j].enabled` = false: never);
 //! masters step on a fixed grid, so the switching instant is that grid point. Loads are not
 //! switched off (an inductive current cannot be interrupted without an arc model). The
-//! Thevenin dip (`E (1 - dip)` during `[dip_t, dip_t + dip_duration)`) and phase jump
-//! (`angle + jump` from `jump_t`) act likewise at step boundaries.
+//! Thevenin dip (`E (1 - dip)` during `[dip_t, dip_t + dip_duration)`), phase jump
+//! (`angle + jump` from `jump_t`), voltage step (`E + step` from `step_t`) and frequency ramp
+//! (`thevenin.rocof` from `rocof_t` for `rocof_duration`, then held; the oscillator's angle is set
+//! at each step's start to pass the ramp's exact angle at the step's middle) act likewise at step
+//! boundaries.
+//!
+//! # Test bench
+//! Faults (balanced and unbalanced, at the PCC or the source bus), a line and a switchable
+//! parallel line from the source bus, the source's breaker and grounded units change the circuit:
+//! when any of them is configured the plant runs on [`bench`]'s αβ0 circuit (parameters and
+//! steps in `events.rs`); without them it runs on the balanced αβ circuit above, unchanged.
 //!
 //! # Initialization
 //! The plant starts in the circuit's sinusoidal steady state. With the Thevenin source
@@ -225,6 +234,8 @@ struct Run {
     df_lag: f64,
     /// The test bench's topology of the last step.
     btopo: bench::BenchTopo,
+    /// The fault branches' currents at the last step's start (for clearing at current zero).
+    fault_last: Vec<f64>,
 }
 
 /// The EMT plant's variables and state.
@@ -1098,6 +1109,7 @@ impl Model for Plant {
             p_m,
             df_lag: 0.0,
             btopo: Default::default(),
+            fault_last: Vec::new(),
         };
         for u in &self.units {
             s[u.m_clamped] = false;

@@ -79,16 +79,12 @@ pub fn cosim() -> PathBuf {
         .join("cosim")
 }
 
+pub mod conformance;
 pub mod digest;
 pub mod mutate;
 
-pub const IDS: [&str; 5] = [
-    "dvpp_der",
-    "dvpp_operator",
-    "dvpp_grid",
-    "dvpp_der_emt",
-    "dvpp_emt_plant",
-];
+/// The model identifiers of every FMU (the workspace's one list, `dvpp-catalog`).
+pub use dvpp_catalog::IDS;
 
 /// The DER units of a system (`.ssp` or its directory): the components whose FMU is the DER FMU
 /// (model identifier `dvpp_der`), in the order of the SSD (the grid's slot order).
@@ -108,7 +104,7 @@ pub fn der_units(system: &Path) -> Result<Vec<String>, String> {
             .map_err(|e| at(e.to_string()))?;
         let md =
             model_description::ModelDescription::from_xml(&xml).map_err(|e| at(e.to_string()))?;
-        if md.model_identifier() == Some(IDS[0]) {
+        if md.model_identifier() == Some(dvpp_catalog::id::DER) {
             units.push(c.name.clone());
         }
     }

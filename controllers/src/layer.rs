@@ -52,7 +52,7 @@ impl TDesParams {
 }
 
 /// The p-f reference model of the unit's mode.
-#[derive(Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub enum PfReference {
     /// Grid-forming: `Δf = -(T_pf/m) Δp` (on S_dvpp).
     Forming(GfmPfModel),

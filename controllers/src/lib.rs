@@ -5,6 +5,7 @@
 //! * [`layer`]: the DVPP layer every DER controller runs (reference models, the operator's dc
 //!   gains, set point, grid-forming angle, voltage matching), with [`adpf`] (an ADPF's typed
 //!   parameters) and the codes [`Mode`], [`AdpfKind`].
+//! * [`operator`]: the DVPP operator (online ADPF dc gains, the desired aggregate response).
 //!
 //! Nothing here knows a host: errors are [`Error`] (naming the parameter or input as the FMUs
 //! name it), warnings and events are [`Notice`]s the host logs as it logs anything.
@@ -12,10 +13,14 @@
 pub mod adpf;
 mod codes;
 pub mod dc;
+pub mod emt;
 pub mod layer;
+pub mod operator;
+pub mod unit;
 
 pub use adpf::{AdpfChannel, AdpfParams, ComplementParams};
 pub use codes::{AdpfKind, Mode};
+pub use unit::{DcLinkParams, OperatorGains, PllParams, Rating, SourceParams};
 
 use serde::{Deserialize, Serialize};
 use std::fmt;

@@ -46,7 +46,8 @@ pub use system::{Builder, Source, System};
 pub use crate::fmu::Sharing;
 
 pub(crate) use coupling::{Event, Plans, Transport};
-pub(crate) use graph::{Link, Phase};
+pub(crate) use graph::Link;
+pub(crate) use unit::Phase;
 
 /// The built-in algorithms by name (the `--algorithm` of `cosim`); [`System::simulate_with`]
 /// takes any [`Algorithm`].

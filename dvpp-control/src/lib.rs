@@ -22,6 +22,7 @@ pub mod bank;
 pub mod checks;
 pub mod converter;
 pub mod error;
+pub mod fleet;
 pub mod local;
 pub mod phasor;
 pub mod presets;
@@ -44,6 +45,7 @@ pub use checks::{
     check_voltage_aggregation, validate_design, DesignReport, HybridReport,
 };
 pub use error::{DvppError, Result};
+pub use fleet::{DerKind, Fleet};
 pub use local::{
     floor_scale, mu_min_gfm, GflFpModel, GfmPfModel, ShapedModel, VqModel, MU_FLOOR_KAPPA,
     MU_MIN_GFM,

@@ -3,6 +3,7 @@
 use crate::adaptation::{active_gains, reactive_gains, renormalize_with_floor};
 use crate::adpf::{Adpf, LowPassSpec};
 use crate::error::Result;
+use crate::fleet::Fleet;
 use crate::local::{GflFpModel, GfmPfModel, VqModel, MU_MIN_GFM};
 use crate::tdes::TDes;
 use serde::{Deserialize, Serialize};
@@ -34,15 +35,18 @@ impl Default for CaseStudyI {
 }
 
 impl CaseStudyI {
-    /// The paper's values.
+    /// The paper's values; the units are [`Fleet::case_study_i`]'s.
     pub fn new() -> Self {
+        // Unit order everywhere: wind, PV, BESS (the fleet's).
+        let fleet = Fleet::case_study_i();
+        let [wind, pv, bess] = [0, 1, 2].map(|k| fleet.units[k].kind);
         Self {
             tdes: TDes::inertia_droop(5.55, 33.33, 0.01, 0.01).expect("case-study T_des is valid"),
             s_dvpp: 96.0,
-            s_rated: [46.0, 73.0, 60.0],
-            tau_wind: 1.5,
-            tau_pv: 0.6,
-            tau_bess_dc: 0.2,
+            s_rated: [wind.s_rated, pv.s_rated, bess.s_rated],
+            tau_wind: wind.tau_dc,
+            tau_pv: pv.tau_dc,
+            tau_bess_dc: bess.tau_dc,
             tau_pll: 1.0 / 60.0,
         }
     }

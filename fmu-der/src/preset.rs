@@ -1,95 +1,9 @@
-//! The named DER presets (`[model] preset`): a table of units and the start values each gives.
+//! The start values a named DER kind (`[model] preset`) gives: its own values, and the dc gains and reactive share it has in case study I's fleet.
 
 use crate::{AdpfKind, Mode};
-use dvpp_control::MU_MIN_GFM;
-use dvpp_control::{active_gains, renormalize_with_floor};
-use serde::{Deserialize, Deserializer, Serialize, Serializer};
-
-/// The p-f ADPF a preset unit is given.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Shape {
-    /// A low-pass with `τ` = the unit's `τ_dc` and dc gain its share of the low-pass units'
-    /// ratings (floored, renormalized to sum 1).
-    LowPass,
-    /// The complement of all low-pass presets (their time constants and dc gains).
-    Complement,
-}
-
-/// A named unit: rating, dc side, dispatch and p-f ADPF shape. Reactive ADPFs are static,
-/// proportional to the unit's share of the presets' ratings (the reactive capacity at zero
-/// active power).
-#[derive(Debug, PartialEq)]
-pub struct Preset {
-    /// What `[model] preset` names it.
-    pub name: &'static str,
-    /// Rating, MVA.
-    pub s_rated: f64,
-    /// Time constant of the dc source, s (a low-pass unit's ADPF `τ` too).
-    pub tau_dc: f64,
-    /// Dispatch, pu on S_base.
-    pub p: f64,
-    /// Available power, pu on S_base.
-    pub p_avail0: f64,
-    /// The primary source can absorb power (a battery): dc source within ±P_avail.
-    pub storage: bool,
-    /// The p-f ADPF.
-    pub shape: Shape,
-}
-
-/// The presets: case study I's units (`docs/control.md` §9; values of
-/// [`dvpp_control::CaseStudyI`]). A new DER kind is one more entry.
-pub const PRESETS: &[Preset] = &[
-    Preset {
-        name: "wind",
-        s_rated: 46.0,
-        tau_dc: 1.5,
-        p: 0.2,
-        p_avail0: 0.4,
-        storage: false,
-        shape: Shape::LowPass,
-    },
-    Preset {
-        name: "pv",
-        s_rated: 73.0,
-        tau_dc: 0.6,
-        p: 0.3,
-        p_avail0: 0.6,
-        storage: false,
-        shape: Shape::LowPass,
-    },
-    Preset {
-        name: "bess",
-        s_rated: 60.0,
-        tau_dc: 0.2,
-        p: 0.1,
-        p_avail0: 0.6,
-        storage: true,
-        shape: Shape::Complement,
-    },
-];
-
-impl Preset {
-    /// The preset called `name`, or why there is none.
-    pub fn named(name: &str) -> Result<&'static Preset, String> {
-        PRESETS.iter().find(|p| p.name == name).ok_or_else(|| {
-            let names: Vec<_> = PRESETS.iter().map(|p| format!("\"{}\"", p.name)).collect();
-            format!("unknown preset \"{name}\": {}", names.join(", "))
-        })
-    }
-}
-
-impl Serialize for Preset {
-    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(self.name)
-    }
-}
-
-impl<'de> Deserialize<'de> for &'static Preset {
-    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        let name = String::deserialize(d)?;
-        Preset::named(&name).map_err(serde::de::Error::custom)
-    }
-}
+/// The DER kinds (`[model] preset` names one): independent presets, each on its own.
+pub use dvpp_control::fleet::{DerKind as Preset, Shape, KINDS as PRESETS};
+use dvpp_control::Fleet;
 
 /// Start values of one channel's ADPF parameters.
 #[derive(Debug, Clone)]
@@ -171,25 +85,34 @@ impl UnitDefaults {
         let Some(preset) = preset else {
             return generic;
         };
-        let total: f64 = PRESETS.iter().map(|u| u.s_rated).sum();
-        let (low_pass, gains) = low_pass_gains();
+        // The shares follow from the fleet the presets are units of: case study I's (a kind
+        // outside it, as if added to it). Another kind changes no member's values.
+        let mut fleet = Fleet::case_study_i();
+        if fleet.position_of_kind(preset).is_none() {
+            fleet = fleet.with(preset.name, *preset);
+        }
+        let k = fleet
+            .position_of_kind(preset)
+            .expect("the preset is a unit of its fleet");
+        let low_pass = fleet.low_pass();
+        let gains = fleet.nominal_active_gains();
         let common = UnitDefaults {
             s_rated: preset.s_rated,
             tau_dc: preset.tau_dc,
             p: preset.p,
             p_avail0: preset.p_avail0,
-            mu_q: preset.s_rated / total,
+            mu_q: fleet.reactive_share(k),
             storage: preset.storage,
             ..generic
         };
         match preset.shape {
             Shape::LowPass => {
-                let k = low_pass
+                let j = low_pass
                     .iter()
-                    .position(|u| *u == preset)
-                    .expect("a low-pass preset is in the table");
+                    .position(|&u| u == k)
+                    .expect("a low-pass unit is among the fleet's low-pass units");
                 UnitDefaults {
-                    mu_p: gains[k],
+                    mu_p: gains[j],
                     adpf_p: AdpfDefaults::of(AdpfKind::LowPass, preset.tau_dc),
                     ..common
                 }
@@ -198,27 +121,16 @@ impl UnitDefaults {
                 mu_p: 0.0,
                 mu_p_lpf: gains,
                 adpf_p: AdpfDefaults {
-                    lpf_tau: low_pass.iter().map(|u| u.tau_dc).collect(),
+                    lpf_tau: low_pass
+                        .iter()
+                        .map(|&u| fleet.units[u].kind.tau_dc)
+                        .collect(),
                     ..AdpfDefaults::of(AdpfKind::Complement, 1.0)
                 },
                 ..common
             },
         }
     }
-}
-
-/// The low-pass presets and their nominal dc gains: proportional to their ratings, floored at
-/// [`MU_MIN_GFM`] (grid-forming units) and renormalized to sum 1.
-fn low_pass_gains() -> (Vec<&'static Preset>, Vec<f64>) {
-    let units: Vec<&Preset> = PRESETS
-        .iter()
-        .filter(|u| u.shape == Shape::LowPass)
-        .collect();
-    let ratings: Vec<f64> = units.iter().map(|u| u.s_rated).collect();
-    let raw = active_gains(&ratings).unwrap_or_else(|_| vec![0.0; units.len()]);
-    let gains = renormalize_with_floor(&raw, &vec![true; units.len()], MU_MIN_GFM)
-        .expect("nominal gains are feasible");
-    (units, gains)
 }
 
 #[cfg(test)]
@@ -254,9 +166,36 @@ mod tests {
         assert_eq!(bess.adpf_p.kind, AdpfKind::Complement);
     }
 
+    /// A kind that is no unit of case study I is valued as if added to its fleet, and the
+    /// members keep their case-study values, not the four-unit fleet's: a preset's start
+    /// values depend on its fleet, never on the other rows of [`PRESETS`].
+    #[test]
+    fn another_kind_changes_no_case_study_unit_s_start_values() {
+        let hydro = Preset {
+            name: "hydro",
+            s_rated: 40.0,
+            tau_dc: 5.0,
+            p: 0.1,
+            p_avail0: 0.3,
+            storage: false,
+            shape: Shape::LowPass,
+        };
+        let four = Fleet::case_study_i().with("hydro", hydro);
+        let mu4 = four.nominal_active_gains();
+        let h = UnitDefaults::of(Some(&hydro));
+        assert_eq!((h.mu_p, h.mu_q), (mu4[2], 40.0 / 219.0));
+        let mu3 = Fleet::case_study_i().nominal_active_gains();
+        let at = |name| UnitDefaults::of(Some(Preset::named(name).unwrap()));
+        let (wind, bess) = (at("wind"), at("bess"));
+        assert_eq!(wind.mu_p, mu3[0]);
+        assert_ne!(wind.mu_p, mu4[0], "the four-unit fleet's gain differs");
+        assert_eq!(wind.mu_q, 46.0 / 179.0);
+        assert_eq!(bess.mu_p_lpf, mu3);
+    }
+
     #[test]
     fn unknown_presets_are_named() {
-        let e = Preset::named("hydro").unwrap_err();
-        assert!(e.contains("hydro") && e.contains("\"wind\""), "{e}");
+        let e = Preset::named("no_such_kind").unwrap_err();
+        assert!(e.contains("no_such_kind") && e.contains("\"wind\""), "{e}");
     }
 }

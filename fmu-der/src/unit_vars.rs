@@ -1,8 +1,9 @@
 //! The variables both DER controllers declare alike (the phasor `Der` and the EMT-level `DerEmt`): rating and bases, mode and `T_des`, the PLL, the dc side, the primary source, the operator's dc gains.
 
-use crate::{ports, UnitDefaults, MAX_LPF};
+use crate::{err, ports, Mode, UnitDefaults, MAX_LPF};
 use dvpp_control::TDes;
 use dvpp_controllers::layer::TDesParams;
+use dvpp_controllers::{DcLinkParams, OperatorGains, PllParams, Rating, SourceParams};
 use fmi_export::{Boolean, Integer, Real, Spec, Variables};
 use fmi_export::{ModelError, Store};
 use serde::{Deserialize, Serialize};
@@ -117,6 +118,29 @@ impl UnitVars {
             tau_q,
         }
     }
+
+    pub(crate) fn rating(&self, s: &Store) -> Rating {
+        Rating {
+            s_rated: s[self.s_rated],
+            s_base: s[self.s_base],
+            s_dvpp: s[self.s_dvpp],
+            f_nom: s[self.f_nom],
+        }
+    }
+
+    /// The `mode` code's mode, or the error naming it.
+    pub(crate) fn mode(&self, s: &Store) -> Result<Mode, ModelError> {
+        Mode::from_code(s[self.mode]).map_err(|e| err("mode", e))
+    }
+
+    pub(crate) fn tdes(&self, s: &Store) -> TDesParams {
+        TDesParams {
+            h: s[self.h],
+            d: s[self.d],
+            dq: s[self.dq],
+            tau_q: s[self.tau_q],
+        }
+    }
 }
 
 /// The PLL's gains and the grid-following references' roll-off.
@@ -168,6 +192,15 @@ impl PllVars {
             ki: pll_ki,
             tau: pll_tau,
             order: pll_order,
+        }
+    }
+
+    pub(crate) fn read(&self, s: &Store) -> PllParams {
+        PllParams {
+            kp: s[self.kp],
+            ki: s[self.ki],
+            tau: s[self.tau],
+            order: s[self.order] as u32,
         }
     }
 }
@@ -231,6 +264,16 @@ impl DcVars {
             g_dc,
             k_dc,
             zeta: dc_zeta,
+        }
+    }
+
+    pub(crate) fn read(&self, s: &Store) -> DcLinkParams {
+        DcLinkParams {
+            tau_dc: s[self.tau_dc],
+            c_dc: s[self.c_dc],
+            g_dc: s[self.g_dc],
+            k_dc: s[self.k_dc],
+            zeta: s[self.zeta],
         }
     }
 }
@@ -297,6 +340,16 @@ impl SourceVars {
             avail_dp,
         }
     }
+
+    pub(crate) fn read(&self, s: &Store) -> SourceParams {
+        SourceParams {
+            storage: s[self.storage],
+            deload: s[self.deload],
+            p_avail0: s[self.p_avail0],
+            avail_t: s[self.avail_t],
+            avail_dp: s[self.avail_dp],
+        }
+    }
 }
 
 /// The operator's dc gains (inputs).
@@ -343,6 +396,18 @@ impl GainVars {
         GainVars {
             mu_p,
             mu_q,
+            mu_p_lpf,
+        }
+    }
+
+    pub(crate) fn read(&self, s: &Store) -> OperatorGains {
+        let mut mu_p_lpf = [0.0; MAX_LPF];
+        for (o, &r) in mu_p_lpf.iter_mut().zip(&self.mu_p_lpf) {
+            *o = s[r];
+        }
+        OperatorGains {
+            mu_p: s[self.mu_p],
+            mu_q: s[self.mu_q],
             mu_p_lpf,
         }
     }

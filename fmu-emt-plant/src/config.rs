@@ -1,6 +1,7 @@
 //! `[model]` of the FMU's `resources/config.toml`: the units, the loads and whether a Thevenin
 //! source is present, as a built-in case (`case = "dvpp3"`, the default, or `"island"`) or listed.
 
+use dvpp_control::fleet::BESS;
 use serde::{Deserialize, Serialize};
 
 /// The built-in case used when `[model]` names none.
@@ -95,18 +96,19 @@ pub fn builtin(name: &str) -> Option<Layout> {
         // Case study I: wind, PV and BESS at the case-I dispatch (31.5 MW, 50 MW, 0) on a
         // Thevenin equivalent, a base load and the 28 MW step at 1 s.
         "dvpp3" => Some(Layout {
-            units: vec![
-                unit("wind", 46.0, 1.5, 0.315),
-                unit("pv", 73.0, 0.6, 0.5),
-                unit("bess", 60.0, 0.2, 0.0),
-            ],
+            units: dvpp_control::Fleet::case_study_i()
+                .units
+                .iter()
+                .zip([0.315, 0.5, 0.0])
+                .map(|(u, p0)| unit(&u.name, u.kind.s_rated, u.kind.tau_dc, p0))
+                .collect(),
             loads: vec![load("base", 0.8, 0.1, 0.0), load("step", 0.28, 0.02, 1.0)],
             thevenin: true,
         }),
         // One 60 MVA unit feeding a series R-L load of 0.5 + j0.1 pu on its rating, and a step
         // of 0.1 + j0.02 pu of its rating at 1 s; no Thevenin source.
         "island" => Some(Layout {
-            units: vec![unit("bess", 60.0, 0.2, 0.0)],
+            units: vec![unit("bess", BESS.s_rated, BESS.tau_dc, 0.0)],
             loads: vec![load("base", 0.3, 0.06, 0.0), load("step", 0.06, 0.012, 1.0)],
             thevenin: false,
         }),

@@ -481,3 +481,22 @@ fn a_subnormal_inertia_is_refused_by_name() {
         h.log()
     );
 }
+
+#[test]
+fn a_degenerate_input_during_initialization_is_warned_once() {
+    let mut h = Harness::<Operator>::new();
+    h.set("der[1].P_avail", -0.1);
+    assert_eq!(h.enter_initialization_mode(), Status::Ok);
+    // Initialization runs again for every value set in initialization mode.
+    h.set("der[2].P_avail", 0.3);
+    let _ = h.get("der[1].mu_p");
+    h.set("der[2].P_avail", 0.31);
+    let _ = h.get("der[1].mu_p");
+    assert!(h.exit_initialization_mode() <= Status::Warning);
+    let warned: Vec<_> = h
+        .warnings()
+        .into_iter()
+        .filter(|w| w.contains("negative available power"))
+        .collect();
+    assert_eq!(warned.len(), 1, "{warned:?}");
+}

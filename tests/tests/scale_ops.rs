@@ -181,8 +181,18 @@ fn two_dvpps_each_keep_their_gains_and_match_their_own_t_des() {
                 operator: "operator_ci",
                 pcc: "pcc_ci",
                 s_dvpp: 96.0,
-                // wind, PV low-pass; the BESS complement has no μ_p of its own.
-                units: vec![(46.0, true), (73.0, true), (60.0, false)],
+                // Case study I's fleet: wind, PV low-pass; the BESS complement has no μ_p of
+                // its own.
+                units: dvpp_control::Fleet::case_study_i()
+                    .units
+                    .iter()
+                    .map(|u| {
+                        (
+                            u.kind.s_rated,
+                            u.kind.shape == dvpp_control::fleet::Shape::LowPass,
+                        )
+                    })
+                    .collect(),
             },
             Dvpp {
                 operator: "operator_fleet",

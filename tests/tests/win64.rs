@@ -1,4 +1,4 @@
-//! The FMUs' win64 binaries under wine against their linux64 binaries: one C master (tests/wine/master.c), built for both, steps each bundled FMU with the same varied inputs, and replays each unit of a `cosim --trace` run of case study I; every value must agree bit for bit.
+//! The FMUs' win64 binaries under wine against their linux64 binaries: one C master (tests/wine/master.c), built for both, steps each bundled FMU with the same varied inputs, replays each unit of a `cosim --trace` run of case study I, and replays the EMT unit's conformance trajectories; every value must agree bit for bit.
 
 use dvpp_e2e::digest::{Digest, Table};
 use dvpp_e2e::{cosim, dist, root, scenario, IDS};
@@ -624,4 +624,72 @@ fn case1_load_replayed_under_wine_matches_its_digest() {
         "{REPLAYED}: the digest of the win64 replays ({rows} rows x {columns} columns) equals {}",
         committed.display()
     ));
+}
+
+/// The EMT unit's host-conformance trajectories (controllers/tests/conformance/, recorded from
+/// `dvpp_controllers::emt::EmtUnit` in closed loop with the EMT plant), each written as an
+/// `fmi2-trace` of the calls that feed its inputs to `dvpp_der_emt` and replayed by the test
+/// master on the linux64 .so and, under wine, on the win64 .dll: every output of every step bit
+/// for bit as the library gave it.
+#[test]
+fn emt_conformance_trajectories_replayed_under_wine_match_the_library() {
+    use dvpp_controllers::emt::trajectory::N_OUT;
+    use dvpp_e2e::conformance::{commands, trace, trajectories};
+    let _one = WINE.lock().unwrap_or_else(|e| e.into_inner());
+    let work = Path::new(env!("CARGO_TARGET_TMPDIR")).join("win64 conformance");
+    let _ = std::fs::remove_dir_all(&work);
+    std::fs::create_dir_all(&work).expect("create the work directory");
+    let id = "dvpp_der_emt";
+    let Some(mut zip) = open_fmu(&dist().join(format!("{id}.fmu")), id) else {
+        return;
+    };
+    let md = description(&mut zip);
+    let dir = work.join("fmu");
+    zip.extract(&dir).expect("unpack the FMU");
+    let Some(masters) = Masters::build(&work) else {
+        return;
+    };
+    let resources = dir.join("resources");
+    let so = dir.join("binaries/linux64").join(format!("{id}.so"));
+    let dll = dir.join("binaries/win64").join(format!("{id}.dll"));
+    for (path, t) in trajectories() {
+        let (text, outputs) = trace(&md, &t);
+        let trace_path = work.join(format!("{}.trace", t.case));
+        std::fs::write(&trace_path, text).expect("write the trace");
+        let mut linux = Command::new(&masters.native);
+        linux
+            .arg("replay")
+            .arg(&so)
+            .arg(&md.guid)
+            .arg(file_uri(&resources.display().to_string(), "file://"))
+            .arg(&trace_path)
+            .arg(&outputs);
+        let mut windows = masters.windows();
+        windows
+            .arg("replay")
+            .arg(windows_path(&dll))
+            .arg(&md.guid)
+            .arg(file_uri(&windows_path(&resources), "file://"))
+            .arg(windows_path(&trace_path))
+            .arg(&outputs);
+        for (mut cmd, platform) in [(linux, "linux64"), (windows, "win64 under wine")] {
+            let what = format!("{}: {platform} replay", t.case);
+            let started = Instant::now();
+            let rows = samples(&mut cmd, &what, N_OUT);
+            assert_eq!(rows.len(), t.steps.len() + 1, "{what}: samples");
+            let (init, steps) = commands(&rows);
+            if let Err(m) = t.compare(&init, &steps) {
+                panic!(
+                    "{} replayed by the test master ({platform}): {m}",
+                    path.display()
+                );
+            }
+            say(&format!(
+                "{}: {} steps on {platform} bit for bit as the library ({:.1} s)",
+                t.case,
+                t.steps.len(),
+                started.elapsed().as_secs_f64()
+            ));
+        }
+    }
 }

@@ -1,57 +1,70 @@
-//! What `cargo xtask` builds, bundles and benchmarks: the FMUs, their variants, the benchmarks.
+//! What `cargo xtask` builds, bundles and benchmarks: the FMUs (from `dvpp-catalog`), their variants, the benchmarks.
 
-/// An FMU: the package of its binary (a cdylib and the `<package>-describe` printer in
-/// `<model>/fmu/`), its model identifier, and the directory of its model library (which holds
-/// the golden `modelDescription.xml`).
-pub struct Fmu {
-    pub package: &'static str,
-    pub id: &'static str,
-    pub model: &'static str,
-}
-
-pub const FMUS: &[Fmu] = &[
-    Fmu {
-        package: "fmu-der",
-        id: "dvpp_der",
-        model: "fmu-der",
-    },
-    Fmu {
-        package: "fmu-der-emt",
-        id: "dvpp_der_emt",
-        model: "fmu-der/emt",
-    },
-    Fmu {
-        package: "fmu-operator",
-        id: "dvpp_operator",
-        model: "fmu-operator",
-    },
-    Fmu {
-        package: "fmu-grid",
-        id: "dvpp_grid",
-        model: "fmu-grid",
-    },
-    Fmu {
-        package: "fmu-emt-plant",
-        id: "dvpp_emt_plant",
-        model: "fmu-emt-plant",
-    },
-];
+/// The FMUs: the workspace's one list (`dvpp-catalog`).
+pub use dvpp_catalog::{id, Fmu, FMUS};
+use dvpp_control::fleet::{Fleet, Shape};
+use std::borrow::Cow;
 
 /// Another configuration of an FMU, bundled as `dist/variants/<id>-<name>.fmu`.
 pub struct Variant {
     pub id: &'static str,
-    pub name: &'static str,
+    pub name: Cow<'static, str>,
     /// The `resources/config.toml` of the variant.
-    pub config: &'static str,
+    pub config: Cow<'static, str>,
     /// Files (relative to the workspace root) copied into the variant's `resources/`.
     pub files: &'static [&'static str],
 }
 
-pub const VARIANTS: &[Variant] = &[
+/// Every variant: the grid's, one DER per unit of case study I's fleet (its preset), the EMT
+/// plant's island.
+pub fn variants() -> Vec<Variant> {
+    let mut all: Vec<Variant> = GRID_VARIANTS.iter().map(Variant::copy).collect();
+    let fleet = Fleet::case_study_i();
+    let low_pass: Vec<&str> = fleet
+        .low_pass()
+        .into_iter()
+        .map(|k| fleet.units[k].name.as_str())
+        .collect();
+    for u in &fleet.units {
+        let what = match u.kind.shape {
+            Shape::LowPass => format!("low-pass ADPF with tau = tau_dc = {} s", u.kind.tau_dc),
+            Shape::Complement => format!(
+                "complement of the {} low-pass ADPFs",
+                low_pass.join(" and ")
+            ),
+        };
+        all.push(Variant {
+            id: id::DER,
+            name: u.name.clone().into(),
+            config: format!(
+                "# Case study I unit {}: {what}, {} MVA.\n[model]\npreset = \"{}\"\n",
+                u.name, u.kind.s_rated, u.kind.name
+            )
+            .into(),
+            files: &[],
+        });
+    }
+    all.extend(PLANT_VARIANTS.iter().map(Variant::copy));
+    all
+}
+
+impl Variant {
+    fn copy(&self) -> Variant {
+        Variant {
+            id: self.id,
+            name: self.name.clone(),
+            config: self.config.clone(),
+            files: self.files,
+        }
+    }
+}
+
+const GRID_VARIANTS: &[Variant] = &[
     Variant {
-        id: "dvpp_grid",
-        name: "ieee9",
-        config: r#"# The IEEE 9-bus base system: three governed machines, no DER slot, PCC = SG2's output.
+        id: id::GRID,
+        name: Cow::Borrowed("ieee9"),
+        config: Cow::Borrowed(
+            r#"# The IEEE 9-bus base system: three governed machines, no DER slot, PCC = SG2's output.
 # Event 1 is the 28 MW load step at bus 5 that the grid tests use for the base system's
 # frequency response (nadir, RoCoF, settling, droop check), off by default
 # (set event[1].enabled = true to run it).
@@ -67,57 +80,47 @@ dp_mw = 28.0
 [start]
 "event[1].enabled" = false
 "#,
+        ),
         files: &[],
     },
     Variant {
-        id: "dvpp_grid",
-        name: "ieee9_hybrid",
-        config: r#"# Case study II: SG2 replaced by a hybrid DVPP at bus 2 (three grid-forming and three
+        id: id::GRID,
+        name: Cow::Borrowed("ieee9_hybrid"),
+        config: Cow::Borrowed(
+            r#"# Case study II: SG2 replaced by a hybrid DVPP at bus 2 (three grid-forming and three
 # grid-following slots); 42 MW load step at bus 2 at t = 1 s.
 [model]
 case = "ieee9_hybrid"
 "#,
+        ),
         files: &[],
     },
     Variant {
-        id: "dvpp_grid",
-        name: "ieee9_dvpp_file",
-        config: r#"# The default case (ieee9_dvpp), read from a case file in resources/ instead of the
+        id: id::GRID,
+        name: Cow::Borrowed("ieee9_dvpp_file"),
+        config: Cow::Borrowed(
+            r#"# The default case (ieee9_dvpp), read from a case file in resources/ instead of the
 # built-in copy: same variables, same GUID as dist/default/dvpp_grid.fmu.
 [model]
 case_file = "ieee9_dvpp.toml"
 "#,
+        ),
         files: &["fmu-grid/cases/ieee9_dvpp.toml"],
     },
-    Variant {
-        id: "dvpp_der",
-        name: "wind",
-        config: "# Case study I wind unit: low-pass ADPF with tau = tau_dc = 1.5 s, 46 MVA.\n[model]\npreset = \"wind\"\n",
-        files: &[],
-    },
-    Variant {
-        id: "dvpp_der",
-        name: "pv",
-        config: "# Case study I PV unit: low-pass ADPF with tau = tau_dc = 0.6 s, 73 MVA.\n[model]\npreset = \"pv\"\n",
-        files: &[],
-    },
-    Variant {
-        id: "dvpp_der",
-        name: "bess",
-        config: "# Case study I BESS: complement of the wind and PV low-pass ADPFs, 60 MVA.\n[model]\npreset = \"bess\"\n",
-        files: &[],
-    },
-    Variant {
-        id: "dvpp_emt_plant",
-        name: "island",
-        config: r#"# The EMT plant as an island: one 60 MVA unit feeding a series R-L load of 0.5 + j0.1 pu
+];
+
+const PLANT_VARIANTS: &[Variant] = &[Variant {
+    id: id::EMT_PLANT,
+    name: Cow::Borrowed("island"),
+    config: Cow::Borrowed(
+        r#"# The EMT plant as an island: one 60 MVA unit feeding a series R-L load of 0.5 + j0.1 pu
 # on its rating, a step of 0.1 + j0.02 pu of its rating at t = 1 s, no Thevenin source.
 [model]
 case = "island"
 "#,
-        files: &[],
-    },
-];
+    ),
+    files: &[],
+}];
 
 /// A benchmark: ns per `fmi2DoStep` of a bundled FMU (path relative to `dist/`) at `h`, with
 /// start values set before initialization.

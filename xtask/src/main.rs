@@ -11,7 +11,7 @@ mod win64;
 
 use dvpp_studies::scenario;
 
-use catalog::{BENCHES, FMUS, VARIANTS};
+use catalog::{BENCHES, FMUS};
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -314,7 +314,7 @@ fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
         bundle_one(fmu.package, fmu.id, fmu.id, config, &[], &out)?;
         written.push(out);
     }
-    for v in VARIANTS
+    for v in catalog::variants()
         .iter()
         .filter(|v| chosen.iter().any(|f| f.id == v.id))
     {
@@ -330,7 +330,7 @@ fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
             fmu.package,
             fmu.id,
             &format!("{}-{}", v.id, v.name),
-            v.config,
+            &v.config,
             &files,
             &out,
         )?;
@@ -372,7 +372,14 @@ fn bundle_scenario(path: &Path) -> Result<PathBuf> {
     }
     let out_dir = root().join("dist").join(&name);
     let mut one = |b: &scenario::Build| -> Result<model_description::ModelDescription> {
-        let xml = bundle_one(b.package, b.id, &b.staging, &b.config, &b.files, &b.out)?;
+        let xml = bundle_one(
+            b.fmu.package,
+            b.fmu.id,
+            &b.staging,
+            &b.config,
+            &b.files,
+            &b.out,
+        )?;
         model_description::ModelDescription::from_xml(&xml).map_err(|e| e.to_string())
     };
     let ssp = scenario::bundle(path, &out_dir, &mut one)?;

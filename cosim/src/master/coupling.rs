@@ -9,8 +9,9 @@
 //! through its [`Transport`]. Either way every unit sees the same calls in the same order with
 //! the same values, which is what keeps their results bit for bit the same.
 
-use super::graph::{Link, Phase};
+use super::graph::Link;
 use super::pool::Pool;
+use super::unit::Phase;
 use super::unit::{Unit, Var};
 use super::Error;
 use crate::fmu::SavedState;

@@ -2,16 +2,8 @@
 //! leaving a unit with direct feedthrough after the connections into it), algebraic loops
 //! found and broken, and the units' order for Gauss-Seidel.
 
-use super::unit::Unit;
+use super::unit::{Phase, Unit};
 use std::collections::BTreeSet;
-
-/// The two phases of a run, whose direct feedthrough differs: initialization
-/// (`InitialUnknowns`) and steps (`Outputs`).
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
-pub(crate) enum Phase {
-    Init,
-    Step,
-}
 
 /// One connection, resolved: the output slot of its source unit, the input of its
 /// destination, the SSP `LinearTransformation` and the value it carried last.

@@ -2,10 +2,10 @@
 //! communication steps to the stop time (or a signal, or an error), and how it went.
 
 use super::coupling::Direct;
-use super::graph::Phase;
 use super::pool::Pool;
 use super::results::{Record, Select};
 use super::system::{Builder, System};
+use super::unit::Phase;
 use super::{Algorithm, Coupling, End, Error, Observer, Options, Recorder, RunInfo};
 use crate::interrupt;
 use crate::table::{seconds, Table};

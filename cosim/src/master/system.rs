@@ -2,7 +2,8 @@
 //! resolved connections and parameter bindings, its experiment and what is known about it.
 
 use super::coupling::{direct_plan, Core, Parameter, Plans};
-use super::graph::{order_links, order_units, Ends, Link, Phase};
+use super::graph::{order_links, order_units, Ends, Link};
+use super::unit::Phase;
 use super::unit::{variable, Unit};
 use super::{Algorithm, Error, Options, Sharing, MAX_STEPS};
 use crate::fmu::Fmu;

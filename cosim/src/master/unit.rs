@@ -1,7 +1,6 @@
 //! One loaded component of a system: its instance, the outputs it records, the inputs waiting
 //! to be set, its direct-feedthrough dependencies and the checking of its FMI calls.
 
-use super::graph::Phase;
 use super::Error;
 use crate::fmu::{Fmu, Instance, Library, SavedState, Status, Trace};
 use crate::ssp::{self, Component, Value};
@@ -9,6 +8,14 @@ use model_description::{BaseType, Causality, ModelDescription};
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
 use std::sync::Arc;
+
+/// The two phases of a run, whose direct feedthrough differs: initialization
+/// (`InitialUnknowns`) and steps (`Outputs`).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+pub(crate) enum Phase {
+    Init,
+    Step,
+}
 
 /// Variable index (1-based, as in `ModelStructure`) to value reference and type.
 pub(crate) struct Var {

@@ -13,7 +13,7 @@
 //!   `m_x · v_dc · v_dc*/(2 v_r)`, so with `vdc_ratio = v_dc*/v_r = 3` a modulation of 2/3 gives
 //!   1 pu at nominal dc voltage) and the dc source's current command `i_dc_ref` (pu of
 //!   `S_rated/v_dc*`).
-//! * **DVPP layer** (the same code as the phasor DER, `crate::layer`): the powers `p`, `q` and
+//! * **DVPP layer** (the same code as the phasor DER, `dvpp_controllers::layer`): the powers `p`, `q` and
 //!   the voltage `v` at the MV side of the transformer (the paper's grid-side measurement,
 //!   computed from `v_c` and `i_g` through `R_t + jX_t`) feed the unit's reference models with
 //!   the operator's dc gains. Grid-forming (`mode` = 1): the dq frame turns at
@@ -35,72 +35,59 @@
 //!   command is not clamped, the source is. The set point is the dispatch curtailed to
 //!   `deload · P_avail - G_dc`.
 //!
+//! The controller is `dvpp_controllers::emt::EmtUnit`; this FMU is its adapter: it reads the
+//! parameters, measurements and gains into their typed values, calls the unit and writes its
+//! command back (docs/emt.md, "For a host author").
+//!
 //! Timing: the output computed at the end of a step is meant to be held over the next step (a
 //! zero-order hold, as an averaged converter model applies a modulation), so the dq-to-abc
 //! transform advances the angle by 1.5 steps (one step of computation delay and half a step
 //! of hold). At initialization the output is prepared for a first step of `t_s`.
 
-mod control;
 mod variables;
 
-use crate::{DerConfig, MAX_LPF};
-use control::Runtime;
+use crate::adpf::AdpfVars;
+use crate::unit_vars::{DcVars, GainVars, PllVars, SourceVars, UnitVars};
+use crate::{log, DerConfig};
+use dvpp_control::converter::{Abc, InnerDesign};
+use dvpp_controllers::emt::{
+    EmtCommand, EmtMeasurement, EmtParams, EmtUnit, FilterParams, InnerKind, QPiParams,
+};
 use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Variables};
-use serde::{Deserialize, Serialize};
 
-/// The EMT-level controller's variable handles and, after initialization, its state.
-#[derive(Clone, Serialize, Deserialize)]
+/// The EMT-level controller's variable handles (its running state is the unit, `EmtUnit`).
 pub struct DerEmt {
-    mode: Integer,
-    s_rated: Real,
-    s_base: Real,
-    s_dvpp: Real,
-    f_nom: Real,
-    h: Real,
-    d: Real,
-    dq: Real,
-    tau_q: Real,
-    adpf_p: crate::adpf::AdpfVars,
-    adpf_q: crate::adpf::AdpfVars,
-    pll_kp: Real,
-    pll_ki: Real,
-    pll_tau: Real,
-    pll_order: Integer,
-    qpi_kp: Real,
-    qpi_ki: Real,
-    e_max: Real,
+    unit: UnitVars,
+    adpf_p: AdpfVars,
+    adpf_q: AdpfVars,
+    pll: PllVars,
+    /// `qpi.kp`, `qpi.ki`, `E_max`.
+    qpi: [Real; 3],
     vq_tau: Real,
-    r_f: Real,
-    l_f: Real,
-    c_f: Real,
-    r_t: Real,
-    l_t: Real,
+    /// `R_f`, `L_f`, `C_f`, `R_t`, `L_t`.
+    filter: [Real; 5],
     vdc_ratio: Real,
     vi_r: Real,
-    current_hz: Real,
-    voltage_hz: Real,
-    zero_ratio: Real,
-    i_max: Real,
+    /// `inner.current_hz`, `inner.voltage_hz`, `inner.zero_ratio`, `I_max`.
+    inner: [Real; 4],
     t_s: Real,
-    tau_dc: Real,
-    c_dc: Real,
-    g_dc: Real,
-    k_dc: Real,
-    dc_zeta: Real,
-    storage: Boolean,
-    deload: Real,
-    p_avail0: Real,
-    avail_t: Real,
-    avail_dp: Real,
+    dc: DcVars,
+    source: SourceVars,
     v_abc: [Real; 3],
     i_abc: [Real; 3],
     ig_abc: [Real; 3],
     v_dc: Real,
-    mu_p: Real,
-    mu_q: Real,
-    mu_p_lpf: Vec<Real>,
+    gains: GainVars,
+    out: Outputs,
+    /// Option A (0) or B (1) for the grid-forming v-q matching.
+    inner_kind: Integer,
+}
+
+/// The command's variables.
+struct Outputs {
     m_abc: [Real; 3],
     i_dc_ref: Real,
+    /// `p_src_min`, `p_src_max`.
     p_src: [Real; 2],
     p: Real,
     q: Real,
@@ -112,26 +99,110 @@ pub struct DerEmt {
     q_ref: Real,
     p_avail: Real,
     i_ac: Real,
-    /// Option A (0) or B (1) for the grid-forming v-q matching.
-    inner_kind: Integer,
-    limit_current: Boolean,
-    limit_modulation: Boolean,
-    limit_source: Boolean,
+    /// `limit.current`, `limit.modulation`, `limit.source`.
+    limit: [Boolean; 3],
+}
+
+/// The three phases of an input.
+fn abc(s: &Store, r: &[Real; 3]) -> Abc {
+    Abc {
+        a: s[r[0]],
+        b: s[r[1]],
+        c: s[r[2]],
+    }
 }
 
 impl DerEmt {
-    fn lpf_gains(&self, s: &Store) -> [f64; MAX_LPF] {
-        let mut out = [0.0; MAX_LPF];
-        for (o, &r) in out.iter_mut().zip(&self.mu_p_lpf) {
-            *o = s[r];
+    /// The parameters as they are now; an unknown code (`mode`, `adpf.*.kind`, `inner.kind`)
+    /// is refused by name.
+    fn params(&self, s: &Store) -> Result<EmtParams, ModelError> {
+        let [qpi_kp, qpi_ki, e_max] = self.qpi;
+        let [r_f, l_f, c_f, r_t, l_t] = self.filter;
+        let [current_hz, voltage_hz, zero_ratio, i_max] = self.inner;
+        Ok(EmtParams {
+            rating: self.unit.rating(s),
+            mode: self.unit.mode(s)?,
+            tdes: self.unit.tdes(s),
+            adpf_p: self.adpf_p.read(s)?,
+            adpf_q: self.adpf_q.read(s)?,
+            pll: self.pll.read(s),
+            qpi: QPiParams {
+                kp: s[qpi_kp],
+                ki: s[qpi_ki],
+                e_max: s[e_max],
+            },
+            vq_tau: s[self.vq_tau],
+            filter: FilterParams {
+                r_f: s[r_f],
+                l_f: s[l_f],
+                c_f: s[c_f],
+                r_t: s[r_t],
+                l_t: s[l_t],
+            },
+            vdc_ratio: s[self.vdc_ratio],
+            vi_r: s[self.vi_r],
+            inner: InnerDesign {
+                current_hz: s[current_hz],
+                voltage_hz: s[voltage_hz],
+                zero_ratio: s[zero_ratio],
+                i_max: s[i_max],
+            },
+            inner_kind: InnerKind::from_code(s[self.inner_kind])?,
+            t_s: s[self.t_s],
+            dc: self.dc.read(s),
+            source: self.source.read(s),
+        })
+    }
+
+    fn measurement(&self, s: &Store, t: f64) -> EmtMeasurement {
+        EmtMeasurement {
+            t,
+            v_c: abc(s, &self.v_abc),
+            i_f: abc(s, &self.i_abc),
+            i_g: abc(s, &self.ig_abc),
+            v_dc: s[self.v_dc],
         }
-        out
+    }
+
+    /// The command into the outputs, its notices into the log.
+    fn write(&self, s: &mut Store, c: EmtCommand, ctx: &mut Context) {
+        let o = &self.out;
+        for (&r, x) in o.m_abc.iter().zip(c.m_abc) {
+            s[r] = x;
+        }
+        for (r, x) in [
+            (o.i_dc_ref, c.i_dc_ref),
+            (o.p_src[0], c.p_src_min),
+            (o.p_src[1], c.p_src_max),
+            (o.p, c.p),
+            (o.q, c.q),
+            (o.v, c.v),
+            (o.df, c.df),
+            (o.theta, c.theta),
+            (o.e, c.e),
+            (o.p_set, c.p_set),
+            (o.q_ref, c.q_ref),
+            (o.p_avail, c.p_avail),
+            (o.i_ac, c.i_ac),
+        ] {
+            s[r] = x;
+        }
+        for (&r, x) in o
+            .limit
+            .iter()
+            .zip([c.limit_current, c.limit_modulation, c.limit_source])
+        {
+            s[r] = x;
+        }
+        for n in c.notices {
+            log(ctx, n);
+        }
     }
 }
 
 impl Model for DerEmt {
     type Config = DerConfig;
-    type State = Runtime;
+    type State = EmtUnit;
     const IDENTIFIER: &'static str = "dvpp_der_emt";
     const NAME: &'static str = "DVPP DER matching controller, EMT level";
     const DESCRIPTION: &'static str = "DVPP unit at EMT level: the DVPP layer (T_des, ADPFs, dc gains) over cascaded capacitor-voltage and converter-current PI loops (option A) and the dc-voltage control, on instantaneous three-phase measurements";
@@ -148,24 +219,32 @@ impl Model for DerEmt {
         DerEmt::declare_variables(config, v)
     }
 
+    /// The unit at the measured operating point; the availability profile is read at t = 0.
     fn initialize(
         &self,
-        _: Option<&Runtime>,
+        _: Option<&EmtUnit>,
         s: &mut Store,
         ctx: &mut Context,
-    ) -> Result<Runtime, ModelError> {
-        self.build(s, ctx)
+    ) -> Result<EmtUnit, ModelError> {
+        let m = self.measurement(s, 0.0);
+        let (unit, command) = EmtUnit::initialize(&self.params(s)?, &m, &self.gains.read(s))?;
+        self.write(s, command, ctx);
+        Ok(unit)
     }
 
+    /// The tunable parameters as they are now, then one sample.
     fn do_step(
         &self,
-        rt: &mut Runtime,
+        unit: &mut EmtUnit,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        self.step(rt, s, t, h, ctx)
+        unit.retune(&self.params(s)?)?;
+        let command = unit.step(&self.measurement(s, t), &self.gains.read(s), h)?;
+        self.write(s, command, ctx);
+        Ok(())
     }
 }
 

@@ -1,6 +1,6 @@
 //! The EMT-level controller's variables: every parameter, measurement, command and monitoring output, with its start value.
 
-use super::DerEmt;
+use super::{DerEmt, Outputs};
 use crate::adpf::AdpfVars;
 use crate::unit_vars::{par, tun, DcVars, GainVars, PllVars, SourceVars, UnitVars};
 use crate::{ports, DerConfig, UnitDefaults};
@@ -24,25 +24,10 @@ impl DerEmt {
         let u = UnitDefaults::of(config.preset).resized(config.rating)?;
         let paper = ConverterData::PAPER;
         let inner = InnerDesign::default();
-        let UnitVars {
-            s_rated,
-            s_base,
-            s_dvpp,
-            f_nom,
-            mode,
-            h,
-            d,
-            dq,
-            tau_q,
-        } = UnitVars::declare(v, &u);
+        let unit = UnitVars::declare(v, &u);
         let adpf_p = AdpfVars::declare(v, "p", &u.adpf_p, true);
         let adpf_q = AdpfVars::declare(v, "q", &u.adpf_q, false);
-        let PllVars {
-            kp: pll_kp,
-            ki: pll_ki,
-            tau: pll_tau,
-            order: pll_order,
-        } = PllVars::declare(v);
+        let pll = PllVars::declare(v);
         let qpi_kp = tun(
             v,
             "qpi.kp",
@@ -157,20 +142,8 @@ impl DerEmt {
             "the host's step, for the output at initialization only (later outputs use the step the host takes)",
             1e-9,
         );
-        let DcVars {
-            tau_dc,
-            c_dc,
-            g_dc,
-            k_dc,
-            zeta: dc_zeta,
-        } = DcVars::declare(v, &u);
-        let SourceVars {
-            storage,
-            deload,
-            p_avail0,
-            avail_t,
-            avail_dp,
-        } = SourceVars::declare(v, &u);
+        let dc = DcVars::declare(v, &u);
+        let source = SourceVars::declare(v, &u);
         // Start values: a balanced 1 pu capacitor voltage at angle 0 and no current (the unit
         // at no load), so that the FMU initializes and steps on its own.
         let three = |v: &mut Variables, prefix: &str, start: [f64; 3], desc: &str| {
@@ -211,11 +184,7 @@ impl DerEmt {
             )
             .min(0.0),
         );
-        let GainVars {
-            mu_p,
-            mu_q,
-            mu_p_lpf,
-        } = GainVars::declare(v, &u);
+        let gains = GainVars::declare(v, &u);
         let out = |v: &mut Variables, name: &str, unit: &str, desc: &str| {
             v.real(Spec::output(name, unit, desc).initial_dependencies(&MEASUREMENTS))
         };
@@ -316,84 +285,57 @@ impl DerEmt {
         );
         let flag =
             |v: &mut Variables, name: &str, desc: &str| v.boolean(Spec::boolean_output(name, desc));
+        let limit = [
+            (
+                "limit.current",
+                "option A: the converter-current reference is held at I_max; option B (inner.kind = 1, no current limit): the converter current is beyond I_max",
+            ),
+            (
+                "limit.modulation",
+                "the converter voltage is held at the modulation limit",
+            ),
+            (
+                "limit.source",
+                "the primary source is held at a bound of its availability (p_src_min, p_src_max) while the dc command asks for more",
+            ),
+        ]
+        .map(|(name, desc)| flag(v, name, desc));
         Ok(DerEmt {
-            mode,
-            s_rated,
-            s_base,
-            s_dvpp,
-            f_nom,
-            h,
-            d,
-            dq,
-            tau_q,
+            unit,
             adpf_p,
             adpf_q,
-            pll_kp,
-            pll_ki,
-            pll_tau,
-            pll_order,
-            qpi_kp,
-            qpi_ki,
-            e_max,
+            pll,
+            qpi: [qpi_kp, qpi_ki, e_max],
             vq_tau,
-            r_f,
-            l_f,
-            c_f,
-            r_t,
-            l_t,
+            filter: [r_f, l_f, c_f, r_t, l_t],
             vdc_ratio,
             vi_r,
-            current_hz,
-            voltage_hz,
-            zero_ratio,
-            i_max,
+            inner: [current_hz, voltage_hz, zero_ratio, i_max],
             t_s,
-            tau_dc,
-            c_dc,
-            g_dc,
-            k_dc,
-            dc_zeta,
-            storage,
-            deload,
-            p_avail0,
-            avail_t,
-            avail_dp,
+            dc,
+            source,
             v_abc,
             i_abc,
             ig_abc,
             v_dc,
-            mu_p,
-            mu_q,
-            mu_p_lpf,
-            m_abc,
-            i_dc_ref,
-            p_src,
-            p,
-            q,
-            v: vv,
-            df,
-            theta,
-            e,
-            p_set,
-            q_ref,
-            p_avail,
-            i_ac,
+            gains,
+            out: Outputs {
+                m_abc,
+                i_dc_ref,
+                p_src,
+                p,
+                q,
+                v: vv,
+                df,
+                theta,
+                e,
+                p_set,
+                q_ref,
+                p_avail,
+                i_ac,
+                limit,
+            },
             inner_kind,
-            limit_current: flag(
-                v,
-                "limit.current",
-                "option A: the converter-current reference is held at I_max; option B (inner.kind = 1, no current limit): the converter current is beyond I_max",
-            ),
-            limit_modulation: flag(
-                v,
-                "limit.modulation",
-                "the converter voltage is held at the modulation limit",
-            ),
-            limit_source: flag(
-                v,
-                "limit.source",
-                "the primary source is held at a bound of its availability (p_src_min, p_src_max) while the dc command asks for more",
-            ),
         })
     }
 }

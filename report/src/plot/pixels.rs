@@ -1,7 +1,14 @@
 //! Data to pixels: a panel's axes from its data, and each series as decimated pixel polylines.
 
-use super::render::Rect;
 use super::{Panel, Series, FAR};
+
+/// A panel's plot area in pixels: its corner `x`, `y` and its size `w`, `h`.
+pub(super) struct Rect {
+    pub(super) x: f64,
+    pub(super) y: f64,
+    pub(super) w: f64,
+    pub(super) h: f64,
+}
 
 #[derive(Clone, Copy)]
 pub(super) struct Axis {

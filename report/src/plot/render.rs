@@ -2,20 +2,13 @@
 
 use std::fmt::Write as _;
 
-use super::pixels::{data_axes, series_pixels, Axis};
+use super::pixels::{data_axes, series_pixels, Axis, Rect};
 use super::text::{c, esc, minus, text_width, tick_width};
 use super::ticks::{linear_ticks, x_ticks, Ticks};
 use super::{
     Panel, Style, AXIS, GRID, LABEL_FONT, LEGEND_FONT, LINE_WIDTH, MINOR_GRID, PALETTE, TEXT,
     TICK_FONT, TITLE_FONT,
 };
-
-pub(super) struct Rect {
-    pub(super) x: f64,
-    pub(super) y: f64,
-    pub(super) w: f64,
-    pub(super) h: f64,
-}
 
 /// The vertical layout, axes and y ticks of a panel: everything its left margin depends on.
 pub(super) struct Layout {

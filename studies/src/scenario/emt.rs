@@ -18,10 +18,6 @@ use super::wiring::Wire;
 use super::{real, start_of};
 use emt_plant_model::config::PlantConfig;
 
-/// Package and model identifier of the EMT plant and of the EMT-level DER controller.
-pub(super) const PLANT_FMU: (&str, &str) = ("fmu-emt-plant", "dvpp_emt_plant");
-pub(super) const DER_EMT_FMU: (&str, &str) = ("fmu-der-emt", "dvpp_der_emt");
-
 /// The plant's component name (the grid's role in a phasor system).
 pub(super) const PLANT: &str = "plant";
 
@@ -293,7 +289,7 @@ impl Job<'_, '_> {
                 .as_ref()
                 .map_or(Table::new(), |e| e.start.clone()),
         );
-        let md = self.build(PLANT_FMU, PLANT, model, &start, Vec::new())?;
+        let md = self.build(&dvpp_catalog::EMT_PLANT, PLANT, model, &start, Vec::new())?;
         Ok(Unit {
             name: PLANT.into(),
             md,
@@ -314,13 +310,15 @@ mod tests {
     fn the_plant_from_a_thevenin_case_starts_at_its_power_flow() {
         let case = grid_model::Case::builtin("thevenin_dvpp").unwrap();
         let pf = grid_model::Grid::new(&case).unwrap().outputs();
-        let units: Vec<UnitData> = [("wind", 46.0, 1.5), ("pv", 73.0, 0.6), ("bess", 60.0, 0.2)]
-            .map(|(name, s_rated, tau_dc)| UnitData {
-                name: name.into(),
-                s_rated,
-                tau_dc,
+        let units: Vec<UnitData> = dvpp_control::Fleet::case_study_i()
+            .units
+            .iter()
+            .map(|u| UnitData {
+                name: u.name.clone(),
+                s_rated: u.kind.s_rated,
+                tau_dc: u.kind.tau_dc,
             })
-            .into();
+            .collect();
         let (model, start) = plant_from_case(&case, &pf, &units).unwrap();
         let mut doc = Table::new();
         doc.insert("model".into(), Value::Table(model));

@@ -9,11 +9,11 @@ use operator_model::{Form, Role};
 use std::path::{Path, PathBuf};
 use toml::{Table, Value};
 
-use super::emt::DER_EMT_FMU;
 use super::split::split_case;
 use super::{
     plain_name, real, start_of, Build, Bundler, DerSpec, DvppSpec, Scenario, GRID, OPERATOR,
 };
+use dvpp_catalog::Fmu;
 
 fn config_text(header: &str, model: Table, start: &Table) -> Result<String, String> {
     let mut doc = Table::new();
@@ -22,11 +22,6 @@ fn config_text(header: &str, model: Table, start: &Table) -> Result<String, Stri
     let body = toml::to_string(&doc).map_err(|e| e.to_string())?;
     Ok(format!("# {header}\n{body}"))
 }
-
-/// Package and model identifier of each FMU kind.
-const GRID_FMU: (&str, &str) = ("fmu-grid", "dvpp_grid");
-const DER_FMU: (&str, &str) = ("fmu-der", "dvpp_der");
-const OPERATOR_FMU: (&str, &str) = ("fmu-operator", "dvpp_operator");
 
 /// The operator role of a DER from its p-f ADPF kind (`adpf.p.kind`).
 fn role_of(md: &ModelDescription, der: &str) -> Result<Role, String> {
@@ -119,15 +114,14 @@ impl Job<'_, '_> {
     /// Bundle the FMU of `(package, id)` as `component` with the given `[model]` and start values.
     pub(super) fn build(
         &mut self,
-        (package, id): (&str, &str),
+        fmu: &'static Fmu,
         component: &str,
         model: Table,
         start: &Table,
         files: Vec<PathBuf>,
     ) -> Result<ModelDescription, String> {
         (self.bundle_one)(&Build {
-            package,
-            id,
+            fmu,
             staging: format!("{}-{component}", self.name),
             config: config_text(&self.sc.description, model, start)?,
             files,
@@ -251,7 +245,7 @@ impl Job<'_, '_> {
             .outputs();
         let start = self.sc.grid.start.clone();
         let unit = if bundle {
-            let md = self.build(GRID_FMU, GRID, model, &start, files.clone())?;
+            let md = self.build(&dvpp_catalog::GRID, GRID, model, &start, files.clone())?;
             Some(Unit {
                 name: GRID.into(),
                 md,
@@ -384,11 +378,11 @@ impl Job<'_, '_> {
     }
 
     /// The DER FMU of the system's level.
-    fn der_fmu(&self) -> (&'static str, &'static str) {
+    fn der_fmu(&self) -> &'static Fmu {
         if self.sc.emt.is_some() {
-            DER_EMT_FMU
+            &dvpp_catalog::DER_EMT
         } else {
-            DER_FMU
+            &dvpp_catalog::DER
         }
     }
 
@@ -621,7 +615,13 @@ impl Job<'_, '_> {
             model.insert("pocs".into(), Value::Integer(pocs as i64));
             model.insert("rot_rx".into(), real(rot_rx));
         }
-        let md = self.build(OPERATOR_FMU, &component, model, &start, Vec::new())?;
+        let md = self.build(
+            &dvpp_catalog::OPERATOR,
+            &component,
+            model,
+            &start,
+            Vec::new(),
+        )?;
         Ok(Unit {
             name: component,
             md,

@@ -36,9 +36,9 @@ pub fn name_of(path: &Path) -> Result<String, String> {
 }
 
 /// How a component's FMU is made: package, staging name, config text, extra resource files.
-pub struct Build<'a> {
-    pub package: &'a str,
-    pub id: &'a str,
+pub struct Build {
+    /// The FMU this component is an instance of.
+    pub fmu: &'static dvpp_catalog::Fmu,
     pub staging: String,
     pub config: String,
     pub files: Vec<PathBuf>,
@@ -75,13 +75,14 @@ pub fn described(dir: &Path, b: &Build) -> Result<ModelDescription, String> {
             .ok_or(format!("{}: not a file", f.display()))?;
         std::fs::copy(f, res.join(name)).map_err(|e| format!("{}: {e}", f.display()))?;
     }
-    let md = match b.package {
-        "fmu-grid" => describe::<grid_model::GridFmu>(&Config::load(&res)?, Some(&res)),
-        "fmu-der" => describe::<der_model::Der>(&Config::load(&res)?, Some(&res)),
-        "fmu-operator" => describe::<operator_model::Operator>(&Config::load(&res)?, Some(&res)),
-        "fmu-der-emt" => describe::<der_model::emt::DerEmt>(&Config::load(&res)?, Some(&res)),
-        "fmu-emt-plant" => describe::<emt_plant_model::Plant>(&Config::load(&res)?, Some(&res)),
-        p => Err(format!("unknown package {p}")),
+    use dvpp_catalog::id;
+    let md = match b.fmu.id {
+        id::GRID => describe::<grid_model::GridFmu>(&Config::load(&res)?, Some(&res)),
+        id::DER => describe::<der_model::Der>(&Config::load(&res)?, Some(&res)),
+        id::OPERATOR => describe::<operator_model::Operator>(&Config::load(&res)?, Some(&res)),
+        id::DER_EMT => describe::<der_model::emt::DerEmt>(&Config::load(&res)?, Some(&res)),
+        id::EMT_PLANT => describe::<emt_plant_model::Plant>(&Config::load(&res)?, Some(&res)),
+        other => Err(format!("no model to describe the FMU {other}")),
     }?;
     // The system only needs the file to exist.
     std::fs::write(&b.out, b"").map_err(|e| e.to_string())?;
@@ -203,6 +204,24 @@ mod tests {
     use model_description::Causality;
     use operator_model::ports as op;
     use std::collections::BTreeMap;
+
+    /// Every FMU of the catalog is described in process by a model of its identifier (the one
+    /// place besides the catalog that adding an FMU touches).
+    #[test]
+    fn every_catalog_fmu_is_described_by_its_model() {
+        let tmp = dvpp_cosim::tmp::TempDir::new("studies-catalog").unwrap();
+        for fmu in dvpp_catalog::FMUS {
+            let b = Build {
+                fmu,
+                staging: fmu.id.into(),
+                config: "# defaults\n".into(),
+                files: Vec::new(),
+                out: tmp.path().join(format!("{}.fmu", fmu.id)),
+            };
+            let md = described(tmp.path(), &b).unwrap_or_else(|e| panic!("{}: {e}", fmu.id));
+            assert_eq!(md.model_identifier(), Some(fmu.id));
+        }
+    }
 
     /// Bundle `scenario` with the FMUs described in process instead of built: the system, and
     /// the model description of each component.
@@ -398,7 +417,11 @@ mod tests {
                     continue;
                 }
                 let c = format!("pv{suffix}");
-                assert_eq!(start(&c, der::S_RATED), Some(73.0 * part), "{c}");
+                assert_eq!(
+                    start(&c, der::S_RATED),
+                    Some(dvpp_control::fleet::PV.s_rated * part),
+                    "{c}"
+                );
                 assert_eq!(start(&c, der::P_AVAIL0), Some(0.5 * part), "{c}");
             }
         }
@@ -586,7 +609,7 @@ mod tests {
                 .filter(|c| {
                     matches!(
                         mds[&c.name].model_identifier(),
-                        Some("dvpp_der" | "dvpp_der_emt")
+                        Some(dvpp_catalog::id::DER | dvpp_catalog::id::DER_EMT)
                     )
                 })
                 .map(|c| c.name.clone())

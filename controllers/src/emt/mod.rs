@@ -1,0 +1,562 @@
+//! The DER matching controller at EMT level as a host-independent object: the DVPP layer over the paper's cascaded inner loops, sampled every 20-50 µs on instantaneous three-phase measurements.
+//!
+//! [`EmtUnit::initialize`] takes the [`EmtParams`], the measured operating point and the
+//! operator's gains and returns the unit and its first [`EmtCommand`]; [`EmtUnit::step`] takes
+//! one sample's [`EmtMeasurement`] and gains and returns the command for the next step;
+//! [`EmtUnit::retune`] takes new values of the tunable parameters. The unit is `Clone` and
+//! serializable: a host saves and restores it as its state.
+//!
+//! Bases and frames (pu on the unit's rating `S_rated`): the capacitor voltage `v_c` of the
+//! rated phase-to-neutral peak `v_r`, the converter-side current `i_f` and the grid-side
+//! (transformer) current `i_g` toward the grid of the rated peak current, `v_dc` of its nominal
+//! `v_dc*`. The converter's phase voltage is `m · v_dc · vdc_ratio/2` (pu of `v_r`). The dq frame
+//! is the amplitude-invariant Park transform at the angle `ω_b t + θ` (grid-forming) or the
+//! PLL's. The powers `p`, `q` (pu on `S_base`) and the voltage `v` are those at the MV side of
+//! the transformer, computed from `v_c` and `i_g` through `R_t + jX_t`.
+//!
+//! Timing: the command computed from the measurements at `t` is meant to be held over the next
+//! step `[t + h, t + 2h)` (a zero-order hold, as an averaged converter applies a modulation), so
+//! the dq-to-abc transform of the modulation advances the angle by 1.5 steps (one step of
+//! computation delay and half a step of hold). At initialization the command is prepared for a
+//! first step of `t_s`.
+
+mod params;
+pub mod trajectory;
+
+pub use params::{EmtParams, FilterParams, InnerKind, ParamValue, QPiParams};
+
+use crate::dc::damping_gain;
+use crate::layer::{self, PfReference};
+use crate::{AdpfKind, Error, Mode, Notice, OperatorGains};
+use dvpp_control::converter::{
+    hinf_gains, Abc, Dq, FilterMeasurement, HinfLoop, InnerDesign, InnerLoops, Pll,
+};
+use dvpp_control::VqModel;
+use serde::{Deserialize, Serialize};
+use std::f64::consts::PI;
+
+/// The converter voltage's floor in the modulation (pu of `v_dc*`): below it the dc link is
+/// taken as empty and the modulation saturates rather than divide by zero.
+const V_DC_FLOOR: f64 = 0.05;
+
+/// Option B's trip: the converter current (pu of the rated peak) beyond which a unit running the
+/// H∞ state feedback, which has no current limit of its own, stops with an error, in units of
+/// `I_max`.
+const HINF_TRIP: f64 = 1.5;
+
+/// Grid-following: time constant (s) of the voltages the current reference is computed from.
+/// The reference `conj(S/v_g) + jωC_f v_c` taken from the instantaneous voltages closes a loop
+/// through the LCL resonance (710 Hz) that the current loop's 1.5 samples of delay make
+/// unstable (measured: a 50 µs, 800 Hz loop diverges from rounding noise within 30 ms); the
+/// lag keeps the reference an outer-loop quantity, as the phasor DER's references are.
+const REFERENCE_TAU: f64 = 1e-3;
+
+/// One sample of the measurements (pu on `S_rated`, instantaneous), at time `t` (s).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct EmtMeasurement {
+    pub t: f64,
+    /// Filter-capacitor voltage, of the rated phase-to-neutral peak.
+    pub v_c: Abc,
+    /// Converter-side filter current, of the rated peak current.
+    pub i_f: Abc,
+    /// Grid-side (transformer) current toward the grid, of the rated peak current.
+    pub i_g: Abc,
+    /// Dc-link voltage, of its nominal `v_dc*`.
+    pub v_dc: f64,
+}
+
+/// What the unit commands for the next step, and what it reports.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+pub struct EmtCommand {
+    /// Modulation indices of phases a, b, c, within [-1, 1].
+    pub m_abc: [f64; 3],
+    /// Current command to the primary (dc) source's lag, pu of `S_rated/v_dc*`.
+    pub i_dc_ref: f64,
+    /// The range of power the primary source can deliver now, pu on `S_rated`, for the host's
+    /// source model: `[0, P_avail]`, or `[-P_avail, P_avail]` for storage.
+    pub p_src_min: f64,
+    pub p_src_max: f64,
+    /// Active and reactive power into the grid and the voltage magnitude at the MV side of
+    /// the transformer (pu on `S_base`, pu).
+    pub p: f64,
+    pub q: f64,
+    pub v: f64,
+    /// The unit's frequency deviation (pu of `f_nom`).
+    pub df: f64,
+    /// The frame's angle beyond `2π f_nom t` (rad).
+    pub theta: f64,
+    /// Grid-forming: the capacitor-voltage reference magnitude.
+    pub e: f64,
+    /// The active set point and the reactive reference (pu on `S_base`).
+    pub p_set: f64,
+    pub q_ref: f64,
+    /// The primary source's availability (pu on `S_base`).
+    pub p_avail: f64,
+    /// Magnitude of the converter-side current (pu of the rated current).
+    pub i_ac: f64,
+    /// Option A: the current reference is held at `I_max`; option B: the current is beyond it.
+    pub limit_current: bool,
+    /// The converter voltage is held at the modulation limit.
+    pub limit_modulation: bool,
+    /// The primary source is held at a bound of its range while the command asks for more.
+    pub limit_source: bool,
+    /// Warnings and events of this call, for the host's log.
+    pub notices: Vec<Notice>,
+}
+
+/// The EMT-level DER matching controller: its parameters and running state.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+pub struct EmtUnit {
+    params: EmtParams,
+    /// `2π f_nom` (rad/s).
+    omega_b: f64,
+    pf: PfReference,
+    vq: VqModel,
+    inner: InnerLoops,
+    /// The design the inner loops run (the tunable one may have moved since).
+    design: InnerDesign,
+    /// Grid-forming with option B: the state feedback in place of the q PI and the inner loops.
+    hinf: Option<HinfLoop>,
+    /// Grid-following: the PLL on the grid-side voltage.
+    pll: Option<Pll>,
+    /// Grid-forming: the frame's angle beyond `ω_b t` (rad).
+    theta: f64,
+    /// The frequency deviation of the frame (pu), held over the next step.
+    df: f64,
+    /// Grid-forming PI matching controller: integral, output, start value.
+    e_int: f64,
+    e: f64,
+    e0: f64,
+    /// The operating point at initialization (pu on S_base; `v0` pu).
+    p0: f64,
+    q0: f64,
+    v0: f64,
+    /// The reactive reference held over the next step (S_base).
+    q_ref: f64,
+    /// Grid-following: the voltage deviation through `vq.tau`.
+    dv_lag: f64,
+    /// Grid-following: the grid-side and capacitor voltages through `REFERENCE_TAU` (dq, PLL
+    /// frame), from which the current reference is computed.
+    vg_lag: Dq,
+    vc_lag: Dq,
+    /// The converter voltage the last output asked for (dq, pu), for the converter power.
+    v_m: Dq,
+    /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
+    /// (dq, pu, its frame), for the voltage the reactive reference model reads.
+    i_g_prev: Dq,
+    vg_prev: Dq,
+    /// The dc source's current as the controller models it (its command through `τ_dc`).
+    i_src: f64,
+    k_d: f64,
+    warned_gains: bool,
+}
+
+impl EmtMeasurement {
+    /// The filter measurement in the frame at `rho`.
+    fn at(&self, rho: f64) -> FilterMeasurement {
+        FilterMeasurement {
+            v_c: self.v_c.to_dq(rho),
+            i_f: self.i_f.to_dq(rho),
+            i_g: self.i_g.to_dq(rho),
+        }
+    }
+}
+
+impl EmtUnit {
+    /// The unit at the measured operating point `m`, taken as a steady state (its time `m.t` is
+    /// when the availability profile is read), with the operator's gains `gains`; and its
+    /// command for a first step of `t_s`. An error names the parameter at fault.
+    pub fn initialize(
+        params: &EmtParams,
+        m: &EmtMeasurement,
+        gains: &OperatorGains,
+    ) -> Result<(EmtUnit, EmtCommand), Error> {
+        params.validate()?;
+        let p = params;
+        let tdes = p.tdes.build()?;
+        let adpf_p = p.adpf_p.build(gains.mu_p, &gains.mu_p_lpf)?;
+        let adpf_q = p.adpf_q.build(gains.mu_q, &[])?;
+        let mode = p.mode;
+        let (pf, vq) = layer::reference_models(&layer::ReferenceSpec {
+            mode,
+            tdes: &tdes,
+            adpf_p: &adpf_p,
+            adpf_q: &adpf_q,
+            params_p: &p.adpf_p,
+            params_q: &p.adpf_q,
+            s_rated: p.rating.s_rated,
+            s_dvpp: p.rating.s_dvpp,
+            pll_tau: crate::positive(p.pll.tau, "pll.tau")?,
+            pll_order: p.pll.order,
+        })?;
+        let omega_b = 2.0 * PI * p.rating.f_nom;
+        let data = p.converter_data();
+        let design = p.inner;
+        let mut inner = InnerLoops::new(&design, data, omega_b);
+
+        // The measured operating point, taken as a steady state: the frame starts on the
+        // voltage behind the virtual resistance (grid-forming) or on the grid-side voltage
+        // (grid-following).
+        let at_zero = m.at(0.0);
+        let rho = match mode {
+            Mode::GridForming => {
+                let w = behind_virtual(p, &at_zero);
+                dvpp_math::atan2(w.q, w.d)
+            }
+            Mode::GridFollowing => {
+                let vg = grid_voltage(p, &at_zero, 1.0);
+                dvpp_math::atan2(vg.q, vg.d)
+            }
+        };
+        let fm = m.at(rho);
+        if fm.v_c.norm() < 0.1 {
+            return Err(Error::unit(format!(
+                "the measured capacitor voltage is {:.4} pu: the controller starts from a running converter (set the start values of v_a, v_b, v_c to the operating point)",
+                fm.v_c.norm()
+            )));
+        }
+        let vg = grid_voltage(p, &fm, 1.0);
+        let to_base = p.rating.s_rated / p.rating.s_base;
+        let (p0, q0) = (vg.p(fm.i_g) * to_base, vg.q(fm.i_g) * to_base);
+        let v_m = fm.v_c + fm.i_f * data.r_f + fm.i_f.rot90() * data.l_f;
+        inner.settle(&fm, v_m, 1.0);
+        let hinf = match (p.inner_kind, mode) {
+            (InnerKind::OptionA, _) => None,
+            (InnerKind::OptionB, Mode::GridForming) => Some(HinfLoop::new(
+                &fm,
+                v_m,
+                p.vi_r,
+                p.rating.s_dvpp / (p.rating.s_rated * p.tdes.dq),
+                // The frame stabilizer damps a frame with inertia; a low-pass ADPF's frame
+                // follows the unit's power at once and the stabilizer would feed that back
+                // (docs/hinf.md §8.2).
+                match p.adpf_p.kind {
+                    AdpfKind::LowPass => 0.0,
+                    _ => hinf_gains::STABILIZER,
+                },
+            )),
+            (InnerKind::OptionB, Mode::GridFollowing) => return Err(Error::field(
+                "inner.kind",
+                "= 1 (option B, the H-infinity v-q matching) is for grid-forming units (mode = 1)",
+            )),
+        };
+        let pll = (mode == Mode::GridFollowing).then(|| Pll::new(p.pll.kp, p.pll.ki, omega_b, rho));
+        let v_dc = m.v_dc;
+        let p_conv = v_m.p(fm.i_f);
+        let i_src = (p_conv + data.g_dc * v_dc * v_dc) / v_dc.max(V_DC_FLOOR);
+        let e0 = behind_virtual(p, &fm).d;
+        let unit = EmtUnit {
+            params: *p,
+            omega_b,
+            pf,
+            vq,
+            inner,
+            design,
+            hinf,
+            pll,
+            theta: rho,
+            df: 0.0,
+            e_int: 0.0,
+            e: e0,
+            e0,
+            p0,
+            q0,
+            v0: vg.norm(),
+            q_ref: q0,
+            dv_lag: 0.0,
+            vg_lag: vg,
+            vc_lag: fm.v_c,
+            v_m,
+            i_g_prev: fm.i_g,
+            vg_prev: vg,
+            i_src,
+            k_d: damping_gain(p.dc.tau_dc, data.c_dc, data.g_dc, data.k_dc, p.dc.zeta),
+            warned_gains: false,
+        };
+        let mut notices = Vec::new();
+        let limit = unit.headroom(m.t);
+        if p0 > limit + 1e-12 {
+            notices.push(Notice::Warning(format!(
+                "dispatch p = {p0:.4} pu is above deload * P_avail - G_dc = {limit:.4} pu: the set point is curtailed from the first step"
+            )));
+        }
+        let range = unit.source_range(m.t);
+        let command = EmtCommand {
+            m_abc: unit.modulation(v_dc, rho + 0.5 * p.t_s * omega_b),
+            i_dc_ref: i_src,
+            p_src_min: range[0],
+            p_src_max: range[1],
+            p: p0,
+            q: q0,
+            v: unit.v0,
+            df: 0.0,
+            theta: rho,
+            e: unit.e,
+            p_set: p0.min(limit),
+            q_ref: q0,
+            p_avail: p.source.available(m.t),
+            i_ac: fm.i_f.norm(),
+            limit_current: false,
+            limit_modulation: false,
+            limit_source: false,
+            notices,
+        };
+        Ok((unit, command))
+    }
+
+    /// The parameters the unit runs with.
+    pub fn params(&self) -> &EmtParams {
+        &self.params
+    }
+
+    /// New values of the tunable parameters (`pll.kp`, `pll.ki`, `qpi.*`, `E_max`, `vq.tau`,
+    /// `vi.r`, `inner.*`, `I_max`, `deload`, `P_avail0`, `avail.*`), taken from `params`; the
+    /// others keep their values from initialization. The inner loops are redesigned at the next
+    /// step if their design changed. Values unchanged change nothing.
+    pub fn retune(&mut self, params: &EmtParams) -> Result<(), Error> {
+        params.validate_inner()?;
+        self.params = self.params.tuned(params);
+        Ok(())
+    }
+
+    /// The highest set point the primary source allows at `t`: `deload · P_avail - G_dc`, on S_base.
+    fn headroom(&self, t: f64) -> f64 {
+        let p = &self.params;
+        p.source.deload * p.source.available(t) - p.dc.g_dc * p.rating.s_rated / p.rating.s_base
+    }
+
+    /// What the primary source can deliver at `t`, `[0, P_avail]` or `±P_avail` for storage, on
+    /// S_rated.
+    fn source_range(&self, t: f64) -> [f64; 2] {
+        let p = &self.params;
+        let cap = p.source.available(t) * p.rating.s_base / p.rating.s_rated;
+        [if p.source.storage { -cap } else { 0.0 }, cap]
+    }
+
+    /// The modulation for the converter voltage `self.v_m` at the frame angle `rho`, with the
+    /// dc voltage `v_dc`.
+    fn modulation(&self, v_dc: f64, rho: f64) -> [f64; 3] {
+        let scale = 0.5 * self.params.vdc_ratio * v_dc.max(V_DC_FLOOR);
+        let v = self.v_m.to_abc(rho);
+        [v.a, v.b, v.c].map(|x| (x / scale).clamp(-1.0, 1.0))
+    }
+
+    /// One sample: the measurements at `m.t` and the operator's gains; the command for the
+    /// step that starts at `m.t + h`.
+    pub fn step(
+        &mut self,
+        m: &EmtMeasurement,
+        gains: &OperatorGains,
+        h: f64,
+    ) -> Result<EmtCommand, Error> {
+        let t = m.t;
+        let p = self.params;
+        let omega_b = self.omega_b;
+        let mut notices = Vec::new();
+        let design = p.inner;
+        if design != self.design {
+            self.inner.redesign(&design, omega_b);
+            self.design = design;
+            notices.push(Notice::Event(format!(
+                "inner loops retuned at t = {t}: current {} Hz, voltage {} Hz, I_max {}",
+                design.current_hz, design.voltage_hz, design.i_max
+            )));
+        }
+        // The frame at t: grid-forming from the reference model's angle, grid-following the PLL's.
+        let rho = match &self.pll {
+            Some(pll) => pll.theta(),
+            None => (omega_b * t).rem_euclid(2.0 * PI) + self.theta,
+        };
+        let omega = 1.0 + self.df;
+        let fm = m.at(rho);
+        let vg = grid_voltage(&p, &fm, omega);
+        let to_base = p.rating.s_rated / p.rating.s_base;
+        let to_dvpp = p.rating.s_base / p.rating.s_dvpp;
+        let (pw, q, v) = (vg.p(fm.i_g) * to_base, vg.q(fm.i_g) * to_base, vg.norm());
+        // Option B's reference model reads the MV-side voltage with the transformer's
+        // L_t di_g/dt too, which the phasor estimate `vg` leaves out: over the last sample,
+        // `(vg + vg_prev)/2 - L_t (i_g - i_g,prev)/(ω_b h)` (centred, so that the estimate's
+        // error is of second order in h). The converter's own current does not move that
+        // voltage on a stiff grid; `vg` does move with it (by L_t di_g/dt), and the fast
+        // tracking of option B would close a loop through it and the frame's swing
+        // (docs/hinf.md §8).
+        let dv = if self.hinf.is_some() {
+            let di = (fm.i_g - self.i_g_prev) * (p.filter.l_t / (omega_b * h));
+            let v_mv = (vg + self.vg_prev) * 0.5 - di;
+            self.i_g_prev = fm.i_g;
+            self.vg_prev = vg;
+            v_mv.norm() - self.v0
+        } else {
+            v - self.v0
+        };
+
+        // The operator's dc gains.
+        let n_lpf = p.adpf_p.n_lpf();
+        let lpf = layer::operator_gains(
+            &mut self.vq,
+            p.adpf_q.kind,
+            gains.mu_q,
+            p.adpf_p.kind,
+            gains.mu_p_lpf,
+            n_lpf,
+            p.adpf_p.share(),
+            &mut self.warned_gains,
+            &mut |n| notices.push(n),
+        )?;
+        let p_set = self.p0.min(self.headroom(t));
+        let v_dc = m.v_dc;
+        let v_m_max = 0.5 * p.vdc_ratio * v_dc.max(0.0);
+        let (v_m, df_next) = match &mut self.pf {
+            PfReference::Forming(pf) => {
+                layer::set_p_gains(pf, p.adpf_p.kind, gains.mu_p, &lpf[..n_lpf])?;
+                let (df, dtheta) =
+                    layer::forming_angle(pf, (pw - p_set) * to_dvpp, h, p.rating.f_nom);
+                // Option B: the state feedback on the reactive error of this sample; option A:
+                // the q PI sets E.
+                let b = match self.hinf.as_mut() {
+                    Some(hl) => {
+                        // Option B has no current limit: beyond HINF_TRIP · I_max the unit trips
+                        // rather than run a converter far past its rating.
+                        let i_f = fm.i_f.norm();
+                        let trip = HINF_TRIP * p.inner.i_max;
+                        if i_f > trip {
+                            return Err(Error::unit(format!(
+                                "option B (inner.kind = 1) has no current limit: the converter \
+                                 current reached {i_f:.3} pu at t = {t} s, beyond {HINF_TRIP} \
+                                 I_max = {trip:.3} pu; the unit trips (docs/hinf.md §8)"
+                            )));
+                        }
+                        let v = hl.step(
+                            &fm,
+                            (q - self.q0) / to_base,
+                            (self.q_ref - self.q0) / to_base,
+                            self.vq.mu_q(),
+                            self.df,
+                            v_m_max,
+                            omega_b,
+                            h,
+                        );
+                        self.e = behind_virtual(&p, &fm).d;
+                        Some(v)
+                    }
+                    None => {
+                        self.e = layer::voltage_matching(
+                            &mut self.e_int,
+                            self.q_ref,
+                            q,
+                            self.e0,
+                            p.qpi.kp,
+                            p.qpi.ki,
+                            p.qpi.e_max,
+                            h,
+                        );
+                        None
+                    }
+                };
+                self.q_ref = self.q0 + self.vq.step(dv, h) / to_dvpp;
+                self.theta += dtheta;
+                let v_m = b.unwrap_or_else(|| {
+                    // The capacitor-voltage reference behind the virtual resistance.
+                    let v_ref = Dq { d: self.e, q: 0.0 } - fm.i_g * p.vi_r;
+                    self.inner.step(&fm, v_ref, omega, v_m_max, h)
+                });
+                (v_m, df)
+            }
+            PfReference::Following(fp) => {
+                layer::set_p_gains(fp, p.adpf_p.kind, gains.mu_p, &lpf[..n_lpf])?;
+                let dp = fp.step(self.df, h) / to_dvpp;
+                let tau_v = p.vq_tau;
+                let kv = if tau_v > 0.0 {
+                    -dvpp_math::expm1(-h / tau_v)
+                } else {
+                    1.0
+                };
+                self.dv_lag += kv * (dv - self.dv_lag);
+                self.q_ref = self.q0 + self.vq.step(self.dv_lag, h) / to_dvpp;
+                // The grid-side current for the references at the measured voltage, plus the
+                // capacitor's current: the converter-side current reference.
+                let k = -dvpp_math::expm1(-h / REFERENCE_TAU);
+                self.vg_lag = self.vg_lag + (vg - self.vg_lag) * k;
+                self.vc_lag = self.vc_lag + (fm.v_c - self.vc_lag) * k;
+                let (pr, qr) = ((p_set + dp) / to_base, self.q_ref / to_base);
+                let u = self.vg_lag;
+                let n2 = (u.d * u.d + u.q * u.q).max(1e-4);
+                let i_g = Dq {
+                    d: (u.d * pr + u.q * qr) / n2,
+                    q: (u.q * pr - u.d * qr) / n2,
+                };
+                let i_ref = i_g + self.vc_lag.rot90() * (omega * p.filter.c_f);
+                let v_m = self.inner.current(&fm, i_ref, omega, v_m_max, h);
+                let pll = self.pll.as_mut().expect("grid-following PLL");
+                pll.kp = p.pll.kp;
+                pll.ki = p.pll.ki;
+                pll.step(self.vg_lag.to_abc(rho), h);
+                (v_m, pll.delta_f())
+            }
+        };
+        // The dc-voltage command: converter power and link losses fed forward, k_dc on the
+        // stored energy, the damping term on the capacitor's power (as the phasor DER).
+        let p_conv = self.v_m.p(fm.i_f);
+        let (c_dc, g_dc) = (p.dc.c_dc, p.dc.g_dc);
+        let stored = 0.5 * c_dc * (v_dc * v_dc - 1.0);
+        let charging = self.i_src * v_dc - g_dc * v_dc * v_dc - p_conv;
+        let command = p_conv + g_dc * v_dc * v_dc - p.dc.k_dc / c_dc * stored - self.k_d * charging;
+        // The command drives the source's lag unclamped; the source stays within its range
+        // (modelled here as the host's source model does it: cut at once to a range that fell,
+        // held at a bound the lag reaches).
+        let range = self.source_range(t + h);
+        let v_range = v_dc.max(V_DC_FLOOR);
+        let (lo, hi) = (range[0] / v_range, range[1] / v_range);
+        let i_cmd = command / v_range;
+        let i0 = self.i_src.clamp(lo, hi);
+        self.i_src = (i_cmd + (i0 - i_cmd) * dvpp_math::exp(-h / p.dc.tau_dc)).clamp(lo, hi);
+        let source = (self.i_src >= hi && i_cmd > hi) || (self.i_src <= lo && i_cmd < lo);
+
+        self.v_m = v_m;
+        self.df = df_next;
+        let rho_out = rho + 1.5 * h * omega_b * (1.0 + df_next);
+        let i_ac = fm.i_f.norm();
+        Ok(EmtCommand {
+            m_abc: self.modulation(v_dc, rho_out),
+            i_dc_ref: i_cmd,
+            p_src_min: range[0],
+            p_src_max: range[1],
+            p: pw,
+            q,
+            v,
+            df: df_next,
+            theta: match &self.pll {
+                Some(pll) => (pll.theta() - omega_b * (t + h) + PI).rem_euclid(2.0 * PI) - PI,
+                None => self.theta,
+            },
+            e: self.e,
+            p_set,
+            q_ref: self.q_ref,
+            p_avail: p.source.available(t + h),
+            i_ac,
+            limit_current: match self.hinf {
+                // Option B does not limit its current: the flag says it is beyond I_max.
+                Some(_) => i_ac > p.inner.i_max,
+                None => self.inner.current_limited(),
+            },
+            limit_modulation: self.hinf.as_ref().map_or(
+                self.inner.modulation_limited(),
+                HinfLoop::modulation_limited,
+            ),
+            limit_source: source,
+            notices,
+        })
+    }
+}
+
+/// The voltage at the MV side of the transformer, `v_c - (R_t + j ω L_t) i_g` (the phasor
+/// relation in the frame turning at `omega` pu).
+fn grid_voltage(p: &EmtParams, m: &FilterMeasurement, omega: f64) -> Dq {
+    m.v_c - m.i_g * p.filter.r_t - m.i_g.rot90() * (omega * p.filter.l_t)
+}
+
+/// The voltage behind the virtual resistance, `v_c + r_v i_g`: the grid-forming frame and `E`
+/// start on it.
+fn behind_virtual(p: &EmtParams, m: &FilterMeasurement) -> Dq {
+    m.v_c + m.i_g * p.vi_r
+}

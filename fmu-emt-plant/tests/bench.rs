@@ -589,3 +589,41 @@ fn clearing_at_current_zero_interrupts_each_phase_near_zero_and_at_once_jumps() 
     assert!(once_cut > 10.0 * zero_cut, "{once_cut} {zero_cut}");
     assert!(once_w > 100.0 * zero_w, "{once_w:e} {zero_w:e}");
 }
+
+#[test]
+fn a_single_line_to_ground_fault_in_an_ungrounded_island_draws_nothing_and_shifts_the_neutral() {
+    // The island (one three-wire unit on a load, no source): no zero-sequence path, so the
+    // fault carries no current; phase a sits at ground and b, c rise to √3 of the phase voltage.
+    let mut h = Harness::<Plant>::from_toml("[model]\ncase = \"island\"\n");
+    set_values(
+        &mut h,
+        &[
+            ("fault.type", 2.0),
+            ("fault.t", 0.01),
+            ("fault.duration", 1.0),
+            ("fault.R", 0.01),
+            ("fault.X", 0.01),
+        ],
+    );
+    h.init();
+    let inputs = steady_inputs(&mut h, 1);
+    let v0 = h.get("pcc.v");
+    let dt = 50e-6;
+    let (mut i_fault, mut v_a, mut v_bc) = (0.0f64, 0.0f64, 0.0f64);
+    for i in 0..800 {
+        drive(&mut h, &inputs, i as f64 * dt);
+        h.step(dt);
+        if (i + 1) as f64 * dt > 0.01 + 1e-9 {
+            i_fault = i_fault.max(h.get("fault.i_a").abs());
+            v_a = v_a.max(h.get("pcc.v_a").abs());
+            v_bc = v_bc.max(h.get("pcc.v_b").abs()).max(h.get("pcc.v_c").abs());
+        }
+    }
+    println!(
+        "SLG fault in the ungrounded island: fault current {i_fault:.1e} pu, |v_a| {v_a:.1e}, peak v_b, v_c {v_bc:.4} = {:.4} x the phase voltage {v0:.4}",
+        v_bc / v0
+    );
+    assert!(i_fault < 1e-12, "{i_fault:e}");
+    assert!(v_a < 1e-9, "{v_a:e}");
+    assert!((v_bc / v0 / 3f64.sqrt() - 1.0).abs() < 0.01, "{v_bc}");
+}

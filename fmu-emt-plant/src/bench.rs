@@ -2,7 +2,7 @@
 //!
 //! The plant's network ([`crate::network`]) is balanced and three-wire, so its α and β axes
 //! are two copies of one circuit. The bench adds what breaks that: a fault between phases and
-//! ground, units whose star point is grounded, a source bus behind the Thevenin impedance. The
+//! ground, units whose zero sequence has a path to ground, a source bus behind the Thevenin impedance. The
 //! circuit is written in the amplitude-invariant αβ0 components: every element but a fault is
 //! the same in each phase, so it is one branch per axis (α, β and, where a zero-sequence path
 //! exists, 0); a fault is a set of abc branches (phase to ground, phase to phase), which couple
@@ -63,6 +63,20 @@ impl FaultKind {
     }
 }
 
+/// A unit's grounding (`der[k].grounding`): where zero-sequence current can flow.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Grounding {
+    /// Nowhere: a three-wire unit behind an ungrounded transformer (0).
+    ThreeWire,
+    /// Through the whole unit: YNyn transformer, the filter capacitors' star point and the
+    /// converter's dc midpoint grounded (1); the modulation's zero sequence drives it.
+    Star,
+    /// In the transformer alone: its MV star grounded, its LV side a delta (Dyn seen from the
+    /// grid, 2): zero-sequence current flows from the PCC through `R_t + jX_t` and circulates in
+    /// the delta; none reaches the filter or the converter.
+    Delta,
+}
+
 /// A fault: its kind, where, and its impedance (`z.l` as reactance at `ω_b`, pu on `S_base`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Fault {
@@ -76,8 +90,8 @@ pub struct Fault {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct BenchData {
     pub units: Vec<UnitData>,
-    /// Per unit: its star point is grounded (zero-sequence current flows in the unit).
-    pub grounded: Vec<bool>,
+    /// Per unit: where its zero-sequence current can flow.
+    pub grounding: Vec<Grounding>,
     pub loads: Vec<Branch>,
     /// The Thevenin impedance behind the source `e` (to the source bus, or to the PCC without a
     /// line).
@@ -213,7 +227,7 @@ impl Bench {
             counter.set(counter.get() + 1);
             counter.get() - 1
         };
-        let axes = |grounded: bool| if grounded { 3 } else { 2 };
+        let axes = |g: Grounding| if g == Grounding::Star { 3 } else { 2 };
         // Circuit states, axis by axis.
         let mut units = vec![
             UnitIdx {
@@ -228,9 +242,11 @@ impl Bench {
         let (mut th, mut line, mut par) = ([0usize; 3], [0usize; 3], [0usize; 3]);
         for axis in 0..3 {
             for (k, u) in units.iter_mut().enumerate() {
-                if axis < axes(d.grounded[k]) {
+                if axis < axes(d.grounding[k]) {
                     u.i_f[axis] = Some(next());
                     u.v_c[axis] = Some(next());
+                    u.i_g[axis] = Some(next());
+                } else if axis == 2 && d.grounding[k] == Grounding::Delta {
                     u.i_g[axis] = Some(next());
                 }
             }
@@ -260,7 +276,7 @@ impl Bench {
         let e = next();
         next();
         for (k, u) in units.iter_mut().enumerate() {
-            for axis in 0..axes(d.grounded[k]) {
+            for axis in 0..axes(d.grounding[k]) {
                 u.u[axis] = Some(next());
             }
         }
@@ -273,6 +289,19 @@ impl Bench {
         let aw = |axis: usize| if axis == 2 { 2.0 } else { 1.0 };
         for (u, ix) in d.units.iter().zip(&units) {
             let c = u.s / d.s_base;
+            if let (None, Some(g)) = (ix.v_c[2], ix.i_g[2]) {
+                // The delta's zero sequence: the MV winding's leakage to ground.
+                inds.push(Ind {
+                    z: g,
+                    r: u.r_t,
+                    l: u.l_t,
+                    c,
+                    w: aw(2),
+                    drive: vec![],
+                    volt: vec![(PCC + 2, -1.0)],
+                    role: Role::Unit,
+                });
+            }
             for axis in 0..3 {
                 let (Some(f), Some(v), Some(g), Some(uu)) =
                     (ix.i_f[axis], ix.v_c[axis], ix.i_g[axis], ix.u[axis])

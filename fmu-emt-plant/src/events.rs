@@ -5,7 +5,7 @@
 //! is configured the plant runs on [`crate::bench`]'s αβ0 circuit instead (a run with none of
 //! these parameters set is the plant's αβ run, unchanged).
 
-use crate::bench::{self, Bench, BenchCache, BenchData, BenchTopo, Fault, FaultKind};
+use crate::bench::{self, Bench, BenchCache, BenchData, BenchTopo, Fault, FaultKind, Grounding};
 use crate::config::Layout;
 use crate::dc::DcState;
 use crate::meter::{clarke, inverse_clarke, Pll};
@@ -117,7 +117,7 @@ impl Plant {
             .enumerate()
             .map(|(k, u)| {
                 let who = format!("unit {} ({}, {} MVA)", k + 1, u.name, u.s_rated);
-                int(v, &unit_name(k, "grounding"), 0, 0.0, 1.0, &format!("{who}: test bench: 0 = three-wire (no zero-sequence current in the unit), 1 = grounded star (transformer YNyn, filter-capacitor star point and the converter's dc midpoint grounded: zero-sequence current flows, driven by the modulation's zero sequence)"))
+                int(v, &unit_name(k, "grounding"), 0, 0.0, 2.0, &format!("{who}: test bench: 0 = three-wire (no zero-sequence current in the unit), 1 = grounded star (transformer YNyn, filter-capacitor star point and the converter's dc midpoint grounded: zero-sequence current flows through the unit, driven by the modulation's zero sequence), 2 = transformer Dyn with its MV star grounded (zero-sequence current flows in the transformer, ig_*, and circulates in its delta; none in the filter or the converter)"))
             })
             .collect();
         let fault_i = PHASES.map(|x| {
@@ -202,14 +202,15 @@ impl Plant {
         omega_b: f64,
     ) -> Result<Option<BenchFixed>, ModelError> {
         let bv = &self.bench;
-        let mut grounded = Vec::new();
+        let mut grounding = Vec::new();
         for (k, g) in bv.grounding.iter().enumerate() {
             match s[*g] {
-                0 => grounded.push(false),
-                1 => grounded.push(true),
+                0 => grounding.push(Grounding::ThreeWire),
+                1 => grounding.push(Grounding::Star),
+                2 => grounding.push(Grounding::Delta),
                 x => {
                     return Err(format!(
-                        "parameter '{}' = {x} must be 0 (three-wire) or 1 (grounded star)",
+                        "parameter '{}' = {x} must be 0 (three-wire), 1 (grounded star) or 2 (Dyn, MV star grounded)",
                         unit_name(k, "grounding")
                     )
                     .into())
@@ -308,14 +309,14 @@ impl Plant {
             || line.is_some()
             || parallel.is_some()
             || t_open.is_some()
-            || grounded.iter().any(|g| *g);
+            || grounding.iter().any(|g| *g != Grounding::ThreeWire);
         if !active {
             return Ok(None);
         }
         Ok(Some(BenchFixed {
             bench: Bench::new(BenchData {
                 units: units.to_vec(),
-                grounded,
+                grounding,
                 loads: loads.to_vec(),
                 thevenin,
                 line,

@@ -194,9 +194,10 @@ fn a_bolted_three_phase_fault_collapses_the_pcc_voltage_and_the_accounts_close()
 }
 
 #[test]
-fn a_single_line_to_ground_fault_drives_zero_sequence_current_only_through_a_grounded_unit() {
+fn a_single_line_to_ground_fault_drives_zero_sequence_current_only_where_a_unit_is_grounded() {
+    // Largest zero-sequence current (converter side i_f, transformer side i_g) of any unit.
     let zero = |grounding: f64| {
-        let (mut worst, mut fault_b) = (0.0f64, 0.0f64);
+        let (mut conv, mut trafo, mut fault_b) = (0.0f64, 0.0f64, 0.0f64);
         let mut fault_a = 0.0f64;
         let values = [
             ("fault.type", 2.0),
@@ -210,8 +211,8 @@ fn a_single_line_to_ground_fault_drives_zero_sequence_current_only_through_a_gro
         ];
         let (_, dc, ac) = open_loop(&values, 50e-6, 0.12, |h, _| {
             for k in 1..=3 {
-                worst = worst.max(zero_sequence(h, &format!("der[{k}].i_")).abs());
-                worst = worst.max(zero_sequence(h, &format!("der[{k}].ig_")).abs());
+                conv = conv.max(zero_sequence(h, &format!("der[{k}].i_")).abs());
+                trafo = trafo.max(zero_sequence(h, &format!("der[{k}].ig_")).abs());
             }
             fault_a = fault_a.max(h.get("fault.i_a").abs());
             fault_b = fault_b.max(h.get("fault.i_b").abs().max(h.get("fault.i_c").abs()));
@@ -222,13 +223,21 @@ fn a_single_line_to_ground_fault_drives_zero_sequence_current_only_through_a_gro
             "an SLG fault on phase a carries no b, c current"
         );
         assert!(fault_a > 1.0, "{fault_a}");
-        worst
+        (conv, trafo)
     };
     let three_wire = zero(0.0);
-    let grounded = zero(1.0);
-    println!("SLG fault: largest zero-sequence unit current {three_wire:.1e} pu three-wire, {grounded:.3} pu grounded star");
-    assert!(three_wire < 1e-12, "{three_wire:e}");
-    assert!(grounded > 0.1, "{grounded}");
+    let star = zero(1.0);
+    let delta = zero(2.0);
+    println!(
+        "SLG fault: largest zero-sequence unit current (converter, transformer) {:.1e}, {:.1e} pu three-wire; {:.3}, {:.3} grounded star; {:.1e}, {:.3} Dyn",
+        three_wire.0, three_wire.1, star.0, star.1, delta.0, delta.1
+    );
+    assert!(
+        three_wire.0 < 1e-12 && three_wire.1 < 1e-12,
+        "{three_wire:?}"
+    );
+    assert!(star.0 > 0.1 && star.1 > 0.1, "{star:?}");
+    assert!(delta.0 < 1e-12 && delta.1 > 0.1, "{delta:?}");
 }
 
 #[test]

@@ -54,6 +54,8 @@ pub(crate) struct BenchVars {
     fault_i: [Real; 3],
     pub(crate) energy_fault: Real,
     pub(crate) energy_switching: Real,
+    /// The source's frequency (declared with a Thevenin source).
+    pub(crate) f_source: Option<Real>,
 }
 
 /// What initialization fixes for the bench: its circuit and the switching times.
@@ -139,7 +141,15 @@ impl Plant {
             "MJ",
             "test bench: magnetic energy the breakers removed interrupting inductive currents (fault clearing, the source's breaker, the parallel line) since initialization",
         ));
+        let f_source = layout.thevenin.then(|| {
+            v.real(Spec::output(
+                "thevenin.f",
+                "pu",
+                "test bench: the source's frequency at the end of the step, pu of f_nom: 1 + thevenin.df + the frequency ramp's deviation",
+            ))
+        });
         BenchVars {
+            f_source,
             grounding,
             source,
             fault,
@@ -486,6 +496,7 @@ impl Plant {
             dw: 0.0,
             p_m,
             df_lag: 0.0,
+            t_end: None,
             btopo: topo0,
             fault_last: Vec::new(),
         };

@@ -236,6 +236,8 @@ struct Run {
     btopo: bench::BenchTopo,
     /// The fault branches' currents at the last step's start (for clearing at current zero).
     fault_last: Vec<f64>,
+    /// The end of the last step (None before the first).
+    t_end: Option<f64>,
 }
 
 /// The EMT plant's variables and state.
@@ -790,6 +792,12 @@ impl Fixed {
         Some(2.0 * PI * rocof * (0.5 * ramped * ramped + dur * (tau - ramped).max(0.0)))
     }
 
+    /// The frequency ramp's deviation at `t`, Hz.
+    fn ramp_df(&self, t: f64) -> f64 {
+        self.ramp
+            .map_or(0.0, |(rocof, at, dur)| rocof * (t - at).clamp(0.0, dur))
+    }
+
     /// The Thevenin source's amplitude and angle over the step that starts at `t`.
     fn source(&self, t: f64) -> (f64, f64) {
         let [e, angle, dip, dip_t, dur, jump, jump_t] = self.source;
@@ -888,6 +896,10 @@ impl Plant {
         s[ev.ac_stored] = ac_stored;
         s[self.bench.energy_fault] = e.fault;
         s[self.bench.energy_switching] = e.switching;
+        if let Some(r) = self.bench.f_source {
+            let ramp = run.t_end.map_or(0.0, |t| fixed.ramp_df(t));
+            s[r] = 1.0 + run.dw + ramp / fixed.f_nom;
+        }
     }
 }
 
@@ -1108,6 +1120,7 @@ impl Model for Plant {
             dw: 0.0,
             p_m,
             df_lag: 0.0,
+            t_end: None,
             btopo: Default::default(),
             fault_last: Vec::new(),
         };
@@ -1138,6 +1151,7 @@ impl Model for Plant {
             bench_cache,
         } = state;
         let t0 = *run.t0.get_or_insert(t);
+        run.t_end = Some(t + h);
         if fixed.bench.is_some() {
             return self.step_bench(fixed, run, bench_cache, s, t, h, t0, ctx);
         }

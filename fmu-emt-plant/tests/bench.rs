@@ -337,6 +337,7 @@ fn the_frequency_ramp_has_its_rocof_and_then_holds() {
         ("load[2].t_on", -1.0),
     ]);
     let mut theta = Vec::new();
+    let mut f_source = Vec::new();
     let mut unwrapped = pcc_angle(&mut h);
     let mut last = unwrapped;
     let steps = (0.9f64 / dt).round() as usize;
@@ -351,6 +352,7 @@ fn the_frequency_ramp_has_its_rocof_and_then_holds() {
         unwrapped += wrap(a - last);
         last = a;
         theta.push(((i + 1) as f64 * dt, unwrapped));
+        f_source.push(h.get("thevenin.f"));
     }
     let freq = |t: f64| {
         let i = (t / dt).round() as usize - 1;
@@ -365,6 +367,20 @@ fn the_frequency_ramp_has_its_rocof_and_then_holds() {
     );
     assert!((measured / rocof - 1.0).abs() < 0.01, "{measured}");
     assert!((held - rocof * dur).abs() < 0.01, "{held}");
+    // The source's own frequency output: the ramp's, and the PCC's within 0.01 Hz mid-ramp.
+    let at = |t: f64| f_source[(t / dt).round() as usize - 1];
+    assert_eq!(at(0.1), 1.0);
+    assert!(
+        (at(0.85) - (1.0 + rocof * dur / 50.0)).abs() < 1e-12,
+        "{}",
+        at(0.85)
+    );
+    assert!(
+        (50.0 * at(0.4) - freq(0.4)).abs() < 0.01,
+        "{} {}",
+        at(0.4),
+        freq(0.4)
+    );
 }
 
 /// The grid's short-circuit power (pu on S_base) from a bolted three-phase fault at the PCC at

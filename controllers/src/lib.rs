@@ -16,6 +16,7 @@ pub mod dc;
 pub mod emt;
 pub mod layer;
 pub mod operator;
+pub mod phasor;
 pub mod unit;
 
 pub use adpf::{AdpfChannel, AdpfParams, ComplementParams};

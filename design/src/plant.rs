@@ -21,7 +21,7 @@
 //! stiff grid has none, an island is a load impedance with no source). All pu on the
 //! converter's rating, in the unit's dq frame at nominal speed. The reference model reads the
 //! MV-side voltage's magnitude (the controller computes it with the transformer's
-//! `L_t di_g/dt`, see `fmu-der/src/emt/control.rs`): on a stiff grid that is `w`, behind an
+//! `L_t di_g/dt`, see `controllers/src/emt/mod.rs`): on a stiff grid that is `w`, behind an
 //! impedance it moves with the unit's own current.
 
 use dvpp_control::converter::{ConverterData, Dq, Lcl};

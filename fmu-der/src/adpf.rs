@@ -1,8 +1,7 @@
 //! One channel's ADPF parameters (`adpf.p.*`, `adpf.q.*`): their declaration and their values as `dvpp_controllers::AdpfParams`.
 
 use crate::preset::AdpfDefaults;
-use crate::{err, model_error, AdpfKind, MAX_LPF};
-use dvpp_control::Adpf;
+use crate::{err, AdpfKind, MAX_LPF};
 use dvpp_controllers::{AdpfChannel, AdpfParams, ComplementParams};
 use fmi_export::{Integer, ModelError, Real, Spec, Store, Variables};
 use serde::{Deserialize, Serialize};
@@ -172,12 +171,6 @@ impl AdpfVars {
             order2: s[self.order2] as u32,
             complement,
         })
-    }
-
-    /// The ADPF the parameters describe, with dc gain `mu` (static, low-pass) or the closed
-    /// units' gains `lpf_mu` (complement).
-    pub(crate) fn build(&self, s: &Store, mu: f64, lpf_mu: &[f64]) -> Result<Adpf, ModelError> {
-        self.read(s)?.build(mu, lpf_mu).map_err(model_error)
     }
 
     /// The ADPF's kind, or an error naming `adpf.*.kind` if its code is none.

@@ -2,85 +2,47 @@
 //! grid-forming or grid-following, that realizes its local reference model with adaptive dynamic
 //! participation factors.
 //!
-//! * Grid-forming (`mode` = 1): `Δf = -T_i^pf Δp` with `T_i^pf = T_pf/m_i^p` (Δp from the measured
-//!   `p`, converted to the DVPP base `S_dvpp`), and the imposed angle
-//!   `θ = θ₀ + 2π f_nom ∫Δf dt` (integrated exactly over each step). The voltage magnitude `E`
-//!   comes from a PI matching controller (option A) making `q` track
-//!   `q_ref = q₀ - T_i^vq Δv`. `E∠θ` starts behind the transformer impedance at the
-//!   measured operating point, so a coupled run starts flat.
-//! * Grid-following (`mode` = 2): a PLL on `v_angle` measures `Δf`; the converter injects
-//!   `p_ref = p₀ - T_i^fp Δf` and `q_ref = q₀ - T_i^vq Δv`, limited to the rating circle.
-//! * Rotational power control (`rot.rx` = R/X of the lossy lines around the unit, > 0): both
-//!   channels work on the rotated powers `p' = (p - r q)/√(1+r²)`, `q' = (r p + q)/√(1+r²)`
-//!   ([`dvpp_control::Rotation`]) instead of `p`, `q`. Grid-forming: `Δf = -T_i^pf Δp'` and the
-//!   PI on `E` makes `q'` track `q'₀ - T_i^vq Δv`; grid-following: the references are
-//!   `p'₀ - T_i^fp Δf` and `q'₀ - T_i^vq Δv`, rotated back to `p_ref`, `q_ref`. The set point
-//!   `(p₀, q₀)` is rotated the same way; limits act on `p`, `q`. `rot.rx` = 0 is the classical
-//!   control, bit for bit. Outputs `p_rot`, `q_rot` are the measured `p'`, `q'`.
-//!
-//! The set point `p₀` is the dispatch at initialization, curtailed to what the primary source
-//! allows with its reserve: `p₀(t) = min(p_dispatch, deload · P_avail(t) - G_dc)` (a cloud that
-//! cuts a PV plant's availability lowers its set point; the DVPP answers that deficit like a
-//! load step).
-//!
-//! The primary source and dc side: an availability profile `P_avail(t)`, a dc source that follows
-//! its command with the lag `τ_dc` within `[0, P_avail]`, and a dc link (`C_dc`, `G_dc`) whose
-//! voltage `v_dc` a proportional controller (`k_dc`) holds. The control math is `dvpp_control`.
+//! The controller is [`dvpp_controllers::phasor::PhasorUnit`] (its module documents the control:
+//! `Δf = -T_i^pf Δp` or `Δp = -T_i^fp Δf`, the PI matching controller on `E`, rotational power
+//! control, the set point curtailed to the primary source, the dc side and the output stage's
+//! limits). This crate is its FMU adapter: it declares the variables (`variables`), reads them
+//! into the unit's typed parameters, measurement and operator's gains, and writes its command
+//! back to the outputs and its notices to the log.
 
 mod adpf;
-mod common;
-mod dc;
 pub mod emt;
-mod following;
-mod forming;
-mod limits;
 pub mod ports;
 mod preset;
-mod runtime;
-mod step;
 mod unit_vars;
 mod variables;
 
+pub use dvpp_controllers::phasor::Priority;
 pub use dvpp_controllers::{AdpfKind, Mode, MAX_LPF};
-pub use limits::priority;
 pub use preset::{Preset, Shape, UnitDefaults, PRESETS};
 
 use adpf::AdpfVars;
-use dvpp_controllers::layer;
+use dvpp_controllers::phasor::{
+    DcRange, OutputStage, PhasorCommand, PhasorMeasurement, PhasorParams, PhasorUnit, QPiParams,
+    SlotImpedance, StartupParams,
+};
 use fmi_export::{Boolean, Context, Integer, Model, ModelError, Real, Store, Variables};
-use runtime::Runtime;
 use serde::{Deserialize, Serialize};
+use unit_vars::{DcVars, GainVars, PllVars, SourceVars, UnitVars};
 
-/// The DER's variable handles and, after initialization, its controller.
+/// The DER's variable handles; its running state (`Model::State`) is the [`PhasorUnit`].
 #[derive(Clone, Serialize, Deserialize)]
 pub struct Der {
-    mode: Integer,
-    s_rated: Real,
-    s_base: Real,
-    s_dvpp: Real,
-    f_nom: Real,
-    h: Real,
-    d: Real,
-    dq: Real,
-    tau_q: Real,
+    /// Rating and bases, mode, `T_des`.
+    unit: UnitVars,
     r_f: Real,
     x_f: Real,
     adpf_p: AdpfVars,
     adpf_q: AdpfVars,
-    pll_kp: Real,
-    pll_ki: Real,
-    pll_tau: Real,
-    pll_order: Integer,
+    pll: PllVars,
     qpi_kp: Real,
     qpi_ki: Real,
     e_max: Real,
-    tau_dc: Real,
-    c_dc: Real,
-    g_dc: Real,
-    storage: Boolean,
-    deload: Real,
-    k_dc: Real,
-    dc_zeta: Real,
+    dc: DcVars,
     v_dc_min: Real,
     v_dc_max: Real,
     t_budget: Real,
@@ -93,17 +55,14 @@ pub struct Der {
     v_sync: Real,
     t_hold: Real,
     ramp: Real,
-    p_avail0: Real,
-    avail_t: Real,
-    avail_dp: Real,
+    source: SourceVars,
     redispatch: Real,
     p: Real,
     q: Real,
     v: Real,
     v_angle: Real,
-    mu_p: Real,
-    mu_q: Real,
-    mu_p_lpf: Vec<Real>,
+    /// The operator's dc gains.
+    gains: GainVars,
     theta: Real,
     e: Real,
     df: Real,
@@ -153,15 +112,6 @@ fn err(name: &str, message: impl std::fmt::Display) -> ModelError {
     ModelError(format!("'{name}'{sep}{message}"))
 }
 
-fn positive(s: &Store, r: Real, name: &str) -> Result<f64, ModelError> {
-    dvpp_controllers::positive(s[r], name).map_err(model_error)
-}
-
-/// A controller's error as the FMU reports it (the same text).
-fn model_error(e: dvpp_controllers::Error) -> ModelError {
-    ModelError(e.to_string())
-}
-
 /// A controller's warning or event into the FMU's log.
 fn log(ctx: &mut Context, notice: dvpp_controllers::Notice) {
     match notice {
@@ -170,9 +120,128 @@ fn log(ctx: &mut Context, notice: dvpp_controllers::Notice) {
     }
 }
 
+impl Der {
+    /// The parameters as they are now; an unknown code (`mode`, `adpf.*.kind`,
+    /// `limit.priority`) is refused by name.
+    fn params(&self, s: &Store) -> Result<PhasorParams, ModelError> {
+        Ok(PhasorParams {
+            rating: self.unit.rating(s),
+            mode: self.unit.mode(s)?,
+            tdes: self.unit.tdes(s),
+            slot: SlotImpedance {
+                r_f: s[self.r_f],
+                x_f: s[self.x_f],
+            },
+            adpf_p: self.adpf_p.read(s)?,
+            adpf_q: self.adpf_q.read(s)?,
+            pll: self.pll.read(s),
+            qpi: self.qpi(s),
+            dc: self.dc.read(s),
+            dc_range: DcRange {
+                v_min: s[self.v_dc_min],
+                v_max: s[self.v_dc_max],
+                t_budget: s[self.t_budget],
+            },
+            source: self.source.read(s),
+            stage: self.stage(s)?,
+            vi_r: s[self.vi_r],
+            startup: StartupParams {
+                v_sync: s[self.v_sync],
+                t_hold: s[self.t_hold],
+                ramp: s[self.ramp],
+            },
+            rot_rx: s[self.rot_rx],
+            redispatch: s[self.redispatch],
+        })
+    }
+
+    fn qpi(&self, s: &Store) -> QPiParams {
+        QPiParams {
+            kp: s[self.qpi_kp],
+            ki: s[self.qpi_ki],
+            e_max: s[self.e_max],
+        }
+    }
+
+    fn stage(&self, s: &Store) -> Result<OutputStage, ModelError> {
+        Ok(OutputStage {
+            i_max: s[self.i_max],
+            priority: Priority::from_code(s[self.priority])?,
+            delay_c: s[self.delay_c],
+            current_tau: s[self.current_tau],
+            vq_tau: s[self.vq_tau],
+        })
+    }
+
+    /// The tunable parameters into the running unit.
+    fn retune(&self, unit: &mut PhasorUnit, s: &Store) -> Result<(), ModelError> {
+        let (pll, source) = (self.pll.read(s), self.source.read(s));
+        unit.set_pll_gains(pll.kp, pll.ki);
+        unit.set_voltage_matching(self.qpi(s));
+        unit.set_output_stage(self.stage(s)?);
+        unit.set_availability(
+            source.deload,
+            source.p_avail0,
+            source.avail_t,
+            source.avail_dp,
+        );
+        unit.set_redispatch(s[self.redispatch]);
+        Ok(())
+    }
+
+    fn measurement(&self, s: &Store, t: f64) -> PhasorMeasurement {
+        PhasorMeasurement {
+            t,
+            p: s[self.p],
+            q: s[self.q],
+            v: s[self.v],
+            v_angle: s[self.v_angle],
+        }
+    }
+
+    /// The command into the outputs, its notices into the log.
+    fn write(&self, s: &mut Store, c: PhasorCommand, ctx: &mut Context) {
+        for (r, x) in [
+            (self.theta, c.theta),
+            (self.e, c.e),
+            (self.df, c.df),
+            (self.p_ref, c.p_ref),
+            (self.p_set, c.p_set),
+            (self.q_ref, c.q_ref),
+            (self.p_avail, c.p_avail),
+            (self.v_dc, c.v_dc),
+            (self.p_dc, c.p_dc),
+            (self.i_ac, c.i_ac),
+            (self.i_limit, c.i_limit),
+            (self.p_min, c.p_min),
+            (self.p_max, c.p_max),
+            (self.e_src, c.energy_source),
+            (self.e_ac, c.energy_ac),
+            (self.e_loss, c.energy_loss),
+            (self.w_dc, c.energy_stored),
+            (self.p_rot, c.p_rot),
+            (self.q_rot, c.q_rot),
+        ] {
+            s[r] = x;
+        }
+        for (r, x) in [
+            (self.limit_current, c.limit_current),
+            (self.limit_dc, c.limit_dc),
+            (self.limit_source, c.limit_source),
+            (self.limit_modulation, c.limit_modulation),
+            (self.synchronized, c.synchronized),
+        ] {
+            s[r] = x;
+        }
+        for n in c.notices {
+            log(ctx, n);
+        }
+    }
+}
+
 impl Model for Der {
     type Config = DerConfig;
-    type State = Runtime;
+    type State = PhasorUnit;
     const IDENTIFIER: &'static str = "dvpp_der";
     const NAME: &'static str = "DVPP DER matching controller";
     const DESCRIPTION: &'static str = "DVPP unit, grid-forming (df = -T_pf/m_p dp) or grid-following (dp = -m_p T_pf^-1 df), with ADPFs, dc side and rating limits";
@@ -187,26 +256,34 @@ impl Model for Der {
         Der::declare_variables(config, v)
     }
 
+    /// The unit at the measured operating point; the availability profile is read at t = 0.
+    /// Initialization may run several times in initialization mode; what `previous` already
+    /// reported is not repeated.
     fn initialize(
         &self,
-        previous: Option<&Runtime>,
+        previous: Option<&PhasorUnit>,
         s: &mut Store,
         ctx: &mut Context,
-    ) -> Result<Runtime, ModelError> {
-        // Initialization may run several times in initialization mode; a warning already given
-        // in this episode is not repeated.
-        self.build(s, ctx, previous.map(|rt| rt.common.warned_gains))
+    ) -> Result<PhasorUnit, ModelError> {
+        let m = self.measurement(s, 0.0);
+        let (unit, command) =
+            PhasorUnit::initialize(&self.params(s)?, &m, &self.gains.read(s), previous)?;
+        self.write(s, command, ctx);
+        Ok(unit)
     }
 
     fn do_step(
         &self,
-        rt: &mut Runtime,
+        unit: &mut PhasorUnit,
         s: &mut Store,
         t: f64,
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        self.step(rt, s, t, h, ctx)
+        self.retune(unit, s)?;
+        let command = unit.step(&self.measurement(s, t), &self.gains.read(s), h)?;
+        self.write(s, command, ctx);
+        Ok(())
     }
 }
 

@@ -1,7 +1,6 @@
 //! The variables both DER controllers declare alike (the phasor `Der` and the EMT-level `DerEmt`): rating and bases, mode and `T_des`, the PLL, the dc side, the primary source, the operator's dc gains.
 
 use crate::{err, ports, Mode, UnitDefaults, MAX_LPF};
-use dvpp_control::TDes;
 use dvpp_controllers::layer::TDesParams;
 use dvpp_controllers::{DcLinkParams, OperatorGains, PllParams, Rating, SourceParams};
 use fmi_export::{Boolean, Integer, Real, Spec, Variables};
@@ -411,15 +410,4 @@ impl GainVars {
             mu_p_lpf,
         }
     }
-}
-
-/// `T_des` from its parameters `Tdes.H`, `Tdes.D`, `Tdes.Dq`, `Tdes.tau_q`, checked.
-pub(crate) fn tdes(s: &Store, h: Real, d: Real, dq: Real, tau_q: Real) -> Result<TDes, ModelError> {
-    let params = TDesParams {
-        h: s[h],
-        d: s[d],
-        dq: s[dq],
-        tau_q: s[tau_q],
-    };
-    Ok(params.build()?)
 }

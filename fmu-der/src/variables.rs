@@ -2,7 +2,7 @@
 
 use crate::adpf::AdpfVars;
 use crate::unit_vars::{par, tun, DcVars, GainVars, PllVars, SourceVars, UnitVars};
-use crate::{limits, ports, Der, DerConfig, UnitDefaults};
+use crate::{ports, Der, DerConfig, Priority, UnitDefaults};
 use fmi_export::{Spec, Variables};
 
 impl Der {
@@ -10,17 +10,7 @@ impl Der {
     pub(crate) fn declare_variables(config: &DerConfig, v: &mut Variables) -> Result<Der, String> {
         let u = UnitDefaults::of(config.preset).resized(config.rating)?;
         let io = [ports::P, ports::Q, ports::V, ports::V_ANGLE];
-        let UnitVars {
-            s_rated,
-            s_base,
-            s_dvpp,
-            f_nom,
-            mode,
-            h,
-            d,
-            dq,
-            tau_q,
-        } = UnitVars::declare(v, &u);
+        let unit = UnitVars::declare(v, &u);
         let r_f = par(
             v,
             ports::R_F,
@@ -39,12 +29,7 @@ impl Der {
         );
         let adpf_p = AdpfVars::declare(v, "p", &u.adpf_p, true);
         let adpf_q = AdpfVars::declare(v, "q", &u.adpf_q, false);
-        let PllVars {
-            kp: pll_kp,
-            ki: pll_ki,
-            tau: pll_tau,
-            order: pll_order,
-        } = PllVars::declare(v);
+        let pll = PllVars::declare(v);
         let qpi_kp = tun(
             v,
             "qpi.kp",
@@ -71,13 +56,7 @@ impl Der {
             "grid-forming PI matching controller: integral gain from q error to E",
             0.0,
         );
-        let DcVars {
-            tau_dc,
-            c_dc,
-            g_dc,
-            k_dc,
-            zeta: dc_zeta,
-        } = DcVars::declare(v, &u);
+        let dc = DcVars::declare(v, &u);
         let v_dc_min = v.real(
             Spec::parameter(
                 "v_dc_min",
@@ -115,7 +94,7 @@ impl Der {
         let delay_c = v.real(
             Spec::parameter(
                 "delay.c",
-                crate::forming::DELAY_COMPENSATION,
+                dvpp_controllers::phasor::DELAY_COMPENSATION,
                 "1",
                 "grid-forming: share of the change its own last angle move makes in its (limited) power that the controls add to the measured power, which shows the angle sent one communication step earlier (docs/control.md §7); 0 = off, for a host that answers the angle within the step",
             )
@@ -134,7 +113,7 @@ impl Der {
         let priority = v.integer(
             Spec::parameter(
                 "limit.priority",
-                limits::priority::ACTIVE,
+                Priority::Active.code(),
                 "",
                 "grid-following at I_max: 0 active current kept first, 1 reactive current kept first",
             )
@@ -182,13 +161,7 @@ impl Der {
             "after a start from zero voltage, the set point ramps from 0 to the dispatch over this time",
             0.0,
         );
-        let SourceVars {
-            storage,
-            deload,
-            p_avail0,
-            avail_t,
-            avail_dp,
-        } = SourceVars::declare(v, &u);
+        let source = SourceVars::declare(v, &u);
         let redispatch = v.real(
             Spec::parameter(
                 "dispatch.dP",
@@ -225,42 +198,21 @@ impl Der {
             "rad",
             "voltage angle at the regulated point, rotating frame at f_nom",
         ));
-        let GainVars {
-            mu_p,
-            mu_q,
-            mu_p_lpf,
-        } = GainVars::declare(v, &u);
+        let gains = GainVars::declare(v, &u);
         let out = |v: &mut Variables, name: &str, unit: &str, desc: &str| {
             v.real(Spec::output(name, unit, desc).initial_dependencies(&io))
         };
         Ok(Der {
-            mode,
-            s_rated,
-            s_base,
-            s_dvpp,
-            f_nom,
-            h,
-            d,
-            dq,
-            tau_q,
+            unit,
             r_f,
             x_f,
             adpf_p,
             adpf_q,
-            pll_kp,
-            pll_ki,
-            pll_tau,
-            pll_order,
+            pll,
             qpi_kp,
             qpi_ki,
             e_max,
-            tau_dc,
-            c_dc,
-            g_dc,
-            storage,
-            deload,
-            k_dc,
-            dc_zeta,
+            dc,
             v_dc_min,
             v_dc_max,
             t_budget,
@@ -273,17 +225,13 @@ impl Der {
             v_sync,
             t_hold,
             ramp,
-            p_avail0,
-            avail_t,
-            avail_dp,
+            source,
             redispatch,
             p,
             q,
             v: vv,
             v_angle,
-            mu_p,
-            mu_q,
-            mu_p_lpf,
+            gains,
             theta: out(
                 v,
                 ports::THETA,

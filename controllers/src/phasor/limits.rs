@@ -6,8 +6,9 @@
 //! unit's saturation is enforced by the grid's slot in every network solution (the DER sends
 //! `i_limit`, `p_min`, `p_max`); here the same rule estimates what it holds back.
 
+use super::Priority;
+use crate::Notice;
 use dvpp_control::Complex;
-use fmi_export::Context;
 use serde::{Deserialize, Serialize};
 
 /// Below this terminal voltage (pu) the current split uses this value (a dead bus has no
@@ -16,14 +17,6 @@ pub const V_FLOOR: f64 = 0.05;
 
 /// A limit episode ends after this long without the limit acting (s).
 pub const RELEASE: f64 = 1.0;
-
-/// Which component keeps its current when a grid-following unit reaches `I_max`.
-pub mod priority {
-    /// Active current first (frequency support).
-    pub const ACTIVE: i32 = 0;
-    /// Reactive current first (voltage support, as fault ride-through codes ask).
-    pub const REACTIVE: i32 = 1;
-}
 
 /// What a limiter did to one current reference.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
@@ -76,13 +69,13 @@ pub fn saturate_forming(
 }
 
 /// Grid-following current limit: active part within the dc budget, then `|i| <= I_max` with the
-/// component `priority` names kept first. Takes and returns `(i_p, i_q)`.
+/// component `first` kept first. Takes and returns `(i_p, i_q)`.
 pub fn saturate_following(
     (ip, iq): (f64, f64),
     v: f64,
     i_max: f64,
     (p_lo, p_hi): (f64, f64),
-    first: i32,
+    first: Priority,
 ) -> ((f64, f64), bool, bool) {
     let v = v.max(V_FLOOR);
     let (lo, hi) = (p_lo / v, p_hi / v);
@@ -97,7 +90,7 @@ pub fn saturate_following(
         let room = (i_max * i_max - kept * kept).max(0.0).sqrt();
         x.clamp(-room, room)
     };
-    let out = if first == priority::REACTIVE {
+    let out = if first == Priority::Reactive {
         let q = keep(iq);
         (rest(ip_dc, q), q)
     } else {
@@ -133,24 +126,27 @@ impl Episode {
         acting: bool,
         value: f64,
         what: impl FnOnce() -> S,
-        ctx: &mut Context,
+        notices: &mut Vec<Notice>,
     ) {
         if acting {
             if !self.active {
                 self.active = true;
                 self.worst = value;
-                ctx.warn(format!("{} acts from t = {t:.4} s ({value:.3})", what()));
+                notices.push(Notice::Warning(format!(
+                    "{} acts from t = {t:.4} s ({value:.3})",
+                    what()
+                )));
             }
             self.worst = self.worst.max(value);
             self.last = t;
         } else if self.active && t - self.last >= RELEASE {
             self.active = false;
-            ctx.event(format!(
+            notices.push(Notice::Event(format!(
                 "{} released at t = {t:.4} s (acted until t = {:.4} s; worst {:.3})",
                 what(),
                 self.last,
                 self.worst
-            ));
+            )));
         }
     }
 }
@@ -180,11 +176,11 @@ mod tests {
 
     #[test]
     fn following_priority_decides_which_current_stays() {
-        let (p, lim, _) = saturate_following((1.0, 1.0), 1.0, 1.2, (-9.0, 9.0), priority::ACTIVE);
+        let (p, lim, _) = saturate_following((1.0, 1.0), 1.0, 1.2, (-9.0, 9.0), Priority::Active);
         assert!(lim);
         assert_eq!(p.0, 1.0);
         assert!((dvpp_math::hypot(p.0, p.1) - 1.2).abs() < 1e-12);
-        let (q, _, _) = saturate_following((1.0, 1.0), 1.0, 1.2, (-9.0, 9.0), priority::REACTIVE);
+        let (q, _, _) = saturate_following((1.0, 1.0), 1.0, 1.2, (-9.0, 9.0), Priority::Reactive);
         assert_eq!(q.1, 1.0);
         assert!((dvpp_math::hypot(q.0, q.1) - 1.2).abs() < 1e-12);
     }

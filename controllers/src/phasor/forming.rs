@@ -1,16 +1,14 @@
 //! The grid-forming step: `Δf = -T_pf/m Δp` sets the angle, a PI on `E` makes `q` track its reference.
 
-use crate::common::Common;
-use crate::common::{Outcome, StepPoint};
-use crate::limits;
-use crate::{layer, Der};
+use super::common::{Common, Outcome, StepPoint};
+use super::{limits, Held, PhasorMeasurement, PhasorParams};
+use crate::{layer, Error};
 use dvpp_control::{Complex, GfmPfModel};
-use fmi_export::{ModelError, Store};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// The grid-forming controller state.
-#[derive(Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub(crate) struct Forming {
     pub(crate) pf: GfmPfModel,
     /// Integral part of the PI matching controller on `E`.
@@ -34,21 +32,23 @@ pub(crate) struct Forming {
 /// `√g_net`: 0.97 for case study I's wind). For that wind (`c` = 0.58) both roots stay within
 /// 0.8 for `g_net` from 0.3 to 1.2.
 /// The default of the parameter `delay.c`.
-pub(crate) const DELAY_COMPENSATION: f64 = 0.5;
+pub const DELAY_COMPENSATION: f64 = 0.5;
 
 /// Time constant of the mean angle increment (s).
 const ANGLE_MEAN_TAU: f64 = 0.02;
 
-impl Der {
+impl Forming {
     /// The grid-forming controls over one step: angle, voltage magnitude and the limits of the
     /// converter's output stage.
-    pub(crate) fn step_forming(
-        &self,
-        f: &mut Forming,
+    pub(crate) fn step(
+        &mut self,
         rt: &mut Common,
-        s: &mut Store,
+        p: &PhasorParams,
+        m: &PhasorMeasurement,
+        out: &mut Held,
         at: &StepPoint,
-    ) -> Result<Outcome, ModelError> {
+    ) -> Result<Outcome, Error> {
+        let f = self;
         let StepPoint {
             h,
             dv,
@@ -56,13 +56,11 @@ impl Der {
             to_rated,
             p_set,
             lpf,
-            v,
-            v_angle,
-            budget,
-            i_max,
+            mu_p,
             ..
         } = *at;
-        layer::set_p_gains(&mut f.pf, rt.p_kind, s[self.mu_p], &lpf[..rt.n_lpf])?;
+        let n_lpf = p.adpf_p.n_lpf();
+        layer::set_p_gains(&mut f.pf, p.adpf_p.kind, mu_p, &lpf[..n_lpf])?;
         // The controls see the power the internal voltage delivers: the measurement
         // plus what the limits withheld, plus the change of the (limited) power that the
         // node's last move of angle makes and the measurement does not show yet: the measurement reflects the angle sent one communication
@@ -82,47 +80,15 @@ impl Der {
         // changes of 0.32 pu in a 150 MW load step) before the wind reached its own limit.
         // Rotational control: both channels see p', q' and the set point rotated (the
         // identity at rot.rx = 0).
-        let compensation = {
-            // The limited power at the measured bus voltage, from the node E∠θ.
-            let (r, x) = self.slot_impedance(s);
-            let z = Complex::new(r, x);
-            let bus = dvpp_math::cpolar(s[self.v], s[self.v_angle]);
-            let u = if s[self.v] > limits::V_FLOOR {
-                bus / s[self.v]
-            } else {
-                dvpp_math::cpolar(1.0, f.theta)
-            };
-            let budget = rt.dc.ac_budget();
-            let r_v = self.virtual_resistance(s);
-            let limited = |theta: f64| {
-                let source = if r_v == 0.0 {
-                    dvpp_math::cpolar(s[self.e], theta)
-                } else {
-                    behind_virtual(dvpp_math::cpolar(f.e, theta), bus, z, r_v)
-                };
-                let wanted = (source - bus) / z;
-                let i = limits::saturate_forming(
-                    wanted * to_rated,
-                    u,
-                    s[self.v],
-                    s[self.i_max],
-                    budget,
-                )
-                .current;
-                (bus * (i / to_rated).conj()).re
-            };
-            let moved = f.dtheta - f.dtheta_mean;
-            s[self.delay_c] * (limited(f.theta) - limited(f.theta - moved))
-        };
-        let (p_fb, q_fb) = rt.rot.rotate(
-            s[self.p] + rt.withheld.0 + compensation,
-            s[self.q] + rt.withheld.1,
-        );
+        let compensation = f.delay_compensation(rt, p, m, out.e, to_rated);
+        let (p_fb, q_fb) = rt
+            .rot
+            .rotate(m.p + rt.withheld.0 + compensation, m.q + rt.withheld.1);
         let (p_set_rot, q_set_rot) = rt.rot.rotate(p_set, rt.q0);
         let dp = (p_fb - p_set_rot) * to_dvpp;
-        s[self.p_ref] = p_set;
-        let (df, dtheta) = layer::forming_angle(&mut f.pf, dp, h, s[self.f_nom]);
-        s[self.df] = df;
+        out.p_ref = p_set;
+        let (df, dtheta) = layer::forming_angle(&mut f.pf, dp, h, p.rating.f_nom);
+        out.df = df;
         f.dtheta = dtheta;
         f.theta += f.dtheta;
         f.dtheta_mean += -dvpp_math::expm1(-h / ANGLE_MEAN_TAU) * (f.dtheta - f.dtheta_mean);
@@ -133,14 +99,37 @@ impl Der {
             rt.q_ref,
             q_fb,
             rt.e0,
-            s[self.qpi_kp],
-            s[self.qpi_ki],
-            s[self.e_max],
+            p.qpi.kp,
+            p.qpi.ki,
+            p.qpi.e_max,
             h,
         );
         rt.q_ref = q_set_rot + rt.vq.step(dv, h) / to_dvpp;
         // Reported as the q at which q' meets its reference at the measured p'.
-        s[self.q_ref] = rt.rot.unrotate(p_fb, rt.q_ref).1;
+        out.q_ref = rt.rot.unrotate(p_fb, rt.q_ref).1;
+        Ok(f.output_stage(rt, p, out, at))
+    }
+
+    /// What the converter imposes: the internal voltage within the modulation limit, its
+    /// current within the output stage's limits; what those hold back is withheld.
+    fn output_stage(
+        &self,
+        rt: &mut Common,
+        p: &PhasorParams,
+        out: &mut Held,
+        at: &StepPoint,
+    ) -> Outcome {
+        let f = self;
+        let StepPoint {
+            h,
+            to_dvpp,
+            to_rated,
+            v,
+            v_angle,
+            budget,
+            i_max,
+            ..
+        } = *at;
         // The converter imposes the internal voltage, within the modulation limit; its
         // output stage holds the current within I_max and the active power within the
         // dc link's budget (enforced in the network solution, `i_limit`, `p_min`,
@@ -148,11 +137,11 @@ impl Der {
         // is added to the measurements the controls see.
         // Behind the virtual resistance, the output is the divider between the internal
         // voltage and the bus (the identity at vi.r = 0).
-        let e_cap = s[self.e_max] * rt.dc.v_dc();
-        let (r, x) = self.slot_impedance(s);
+        let e_cap = p.qpi.e_max * rt.dc.v_dc();
+        let (r, x) = p.slot_impedance();
         let z = Complex::new(r, x);
         let bus = dvpp_math::cpolar(v, v_angle);
-        let r_v = self.virtual_resistance(s);
+        let r_v = p.virtual_resistance();
         // The source's magnitude and angle, the angle continuous with the internal one; at
         // vi.r = 0 the internal voltage itself, not a round trip through rectangular
         // coordinates (which moves the last bit: a flat start would not stay flat).
@@ -180,22 +169,60 @@ impl Der {
         rt.withheld = if lim.current_limit || lim.dc_limit {
             let held = bus * (wanted - lim.current / to_rated).conj();
             let feedthrough = f.pf.simulator().system().d()[0].abs();
-            let loop_gain = 2.0 * PI * s[self.f_nom] * h * feedthrough * to_dvpp * e_out * v
+            let loop_gain = 2.0 * PI * p.rating.f_nom * h * feedthrough * to_dvpp * e_out * v
                 / dvpp_math::cabs(z);
             let kappa = (0.5 / loop_gain).min(1.0);
             (kappa * held.re, kappa * held.im)
         } else {
             (0.0, 0.0)
         };
-        s[self.e] = e_out;
-        s[self.theta] = theta_out;
+        out.e = e_out;
+        out.theta = theta_out;
         let request = dvpp_math::cabs(wanted * to_rated) / i_max;
-        Ok(Outcome {
+        Outcome {
             current_limit: lim.current_limit,
             dc_limit: lim.dc_limit,
             request,
             modulation,
-        })
+        }
+    }
+
+    /// The change of the (limited) power that the node's last move of angle makes and the
+    /// measurement does not show yet, times `delay.c`; `e_held` is the magnitude the converter
+    /// imposed over the last step.
+    fn delay_compensation(
+        &self,
+        rt: &Common,
+        p: &PhasorParams,
+        m: &PhasorMeasurement,
+        e_held: f64,
+        to_rated: f64,
+    ) -> f64 {
+        let f = self;
+        // The limited power at the measured bus voltage, from the node E∠θ.
+        let (r, x) = p.slot_impedance();
+        let z = Complex::new(r, x);
+        let bus = dvpp_math::cpolar(m.v, m.v_angle);
+        let u = if m.v > limits::V_FLOOR {
+            bus / m.v
+        } else {
+            dvpp_math::cpolar(1.0, f.theta)
+        };
+        let budget = rt.dc.ac_budget();
+        let r_v = p.virtual_resistance();
+        let limited = |theta: f64| {
+            let source = if r_v == 0.0 {
+                dvpp_math::cpolar(e_held, theta)
+            } else {
+                behind_virtual(dvpp_math::cpolar(f.e, theta), bus, z, r_v)
+            };
+            let wanted = (source - bus) / z;
+            let i =
+                limits::saturate_forming(wanted * to_rated, u, m.v, p.stage.i_max, budget).current;
+            (bus * (i / to_rated).conj()).re
+        };
+        let moved = f.dtheta - f.dtheta_mean;
+        p.stage.delay_c * (limited(f.theta) - limited(f.theta - moved))
     }
 }
 

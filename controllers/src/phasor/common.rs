@@ -1,22 +1,18 @@
 //! What both channels share: their common state, what a step hands them and what they report, the PLL model.
 
-use crate::dc::DcSide;
-use crate::limits::Episode;
-use crate::{AdpfKind, MAX_LPF};
+use super::dc::DcSide;
+use super::limits::Episode;
+use crate::MAX_LPF;
 use dvpp_control::{Rotation, StateSpace, VqModel};
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 /// The state both channels share.
-#[derive(Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub(crate) struct Common {
     pub(crate) vq: VqModel,
     pub(crate) dc: DcSide,
-    /// Kind of the p-f ADPF (which gains the inputs set).
-    pub(crate) p_kind: AdpfKind,
-    pub(crate) n_lpf: usize,
-    pub(crate) q_kind: AdpfKind,
     pub(crate) p0: f64,
     pub(crate) q0: f64,
     pub(crate) v0: f64,
@@ -43,7 +39,7 @@ pub(crate) struct Common {
 }
 
 /// A unit waiting for the voltage to appear.
-#[derive(Clone, Serialize, Deserialize)]
+#[derive(Debug, Clone, Serialize, Deserialize)]
 pub(crate) struct Startup {
     /// Since when the voltage has been above `startup.v_sync` and steady.
     pub(crate) ok_since: Option<f64>,
@@ -51,7 +47,7 @@ pub(crate) struct Startup {
 }
 
 /// The episodes of each limit (the `limit.*` outputs).
-#[derive(Clone, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, Serialize, Deserialize)]
 pub(crate) struct LimitEpisodes {
     pub(crate) current: Episode,
     pub(crate) dc: Episode,
@@ -78,6 +74,8 @@ pub(crate) struct StepPoint {
     /// The dc link's active power budget for the ac side, pu on S_rated.
     pub(crate) budget: (f64, f64),
     pub(crate) i_max: f64,
+    /// The operator's p-f dc gain `mu_p`.
+    pub(crate) mu_p: f64,
 }
 
 /// What the channel's step reports to the limit episodes.

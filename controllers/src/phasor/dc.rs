@@ -21,8 +21,8 @@
 //! Two more states integrate `r` and `e` so the step also yields the exact source and loss
 //! energies: over any run `E_src - E_ac - E_loss = W - W(0)` to rounding.
 
+use crate::dc::damping_gain;
 use dvpp_control::{Hold, LtiSimulator, StateSpace};
-use dvpp_controllers::dc::damping_gain;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -214,7 +214,7 @@ impl DcSide {
 
     /// After a step: the reserve is spent when the link is within [`RESERVE_SPENT`] of its usable
     /// energy from `v_min` or `v_max`, and available again once the dc limit's episode has ended
-    /// (`dc_limit_on` false: the limit has not acted for [`crate::limits::RELEASE`]).
+    /// (`dc_limit_on` false: the limit has not acted for [`super::limits::RELEASE`]).
     pub fn update_reserve(&mut self, dc_limit_on: bool, cap: f64) {
         let p = &self.params;
         let floor = if p.storage { -cap } else { 0.0 };

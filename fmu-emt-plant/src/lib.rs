@@ -53,8 +53,17 @@
 //! after `load[j].t_on` (0: from the start, negative or `load[j].enabled` = false: never);
 //! masters step on a fixed grid, so the switching instant is that grid point. Loads are not
 //! switched off (an inductive current cannot be interrupted without an arc model). The
-//! Thevenin dip (`E (1 - dip)` during `[dip_t, dip_t + dip_duration)`) and phase jump
-//! (`angle + jump` from `jump_t`) act likewise at step boundaries.
+//! Thevenin dip (`E (1 - dip)` during `[dip_t, dip_t + dip_duration)`), phase jump
+//! (`angle + jump` from `jump_t`), voltage step (`E + step` from `step_t`) and frequency ramp
+//! (`thevenin.rocof` from `rocof_t` for `rocof_duration`, then held; the oscillator's angle is set
+//! at each step's start to pass the ramp's exact angle at the step's middle) act likewise at step
+//! boundaries.
+//!
+//! # Test bench
+//! Faults (balanced and unbalanced, at the PCC or the source bus), a line and a switchable
+//! parallel line from the source bus, the source's breaker and grounded units change the circuit:
+//! when any of them is configured the plant runs on [`bench`]'s αβ0 circuit (parameters and
+//! steps in `events.rs`); without them it runs on the balanced αβ circuit above, unchanged.
 //!
 //! # Initialization
 //! The plant starts in the circuit's sinusoidal steady state. With the Thevenin source
@@ -69,8 +78,10 @@
 //! The PCC frequency `pcc.df` and angle `pcc.theta` come from a measurement SRF-PLL
 //! ([`meter::Pll`], `pll.kp` = 60, `pll.ki` = 240 as the paper's PLL), a meter only.
 
+pub mod bench;
 pub mod config;
 pub mod dc;
+mod events;
 pub mod meter;
 pub mod network;
 pub mod steady;
@@ -169,6 +180,10 @@ struct Energies {
     ac_loss: f64,
     thevenin: f64,
     loads: f64,
+    /// Dissipated in the fault's impedance (test bench).
+    fault: f64,
+    /// Removed by breakers interrupting inductive currents (test bench).
+    switching: f64,
 }
 
 /// What initialization fixed: the circuit, the dc parameters, the events.
@@ -188,6 +203,12 @@ struct Fixed {
     /// Per load: connected from this time on (None: never).
     t_on: Vec<Option<f64>>,
     pll_gains: (f64, f64),
+    /// The source's voltage step `(ΔE, t)` and frequency ramp `(RoCoF Hz/s, t, duration)`.
+    v_step: Option<(f64, f64)>,
+    ramp: Option<(f64, f64, f64)>,
+    f_nom: f64,
+    /// The test bench's circuit and switching times, when a bench element is configured.
+    bench: Option<events::BenchFixed>,
 }
 
 /// The running state.
@@ -211,6 +232,12 @@ struct Run {
     p_m: f64,
     /// The PCC frequency deviation after the lag `pcc.f_filter_t`.
     df_lag: f64,
+    /// The test bench's topology of the last step.
+    btopo: bench::BenchTopo,
+    /// The fault branches' currents at the last step's start (for clearing at current zero).
+    fault_last: Vec<f64>,
+    /// The end of the last step (None before the first).
+    t_end: Option<f64>,
 }
 
 /// The EMT plant's variables and state.
@@ -234,6 +261,8 @@ pub struct Plant {
     pcc_f: Real,
     pcc_f_filter_t: Real,
     energy: EnergyVars,
+    /// The test bench's parameters and outputs (declared last).
+    bench: events::BenchVars,
 }
 
 /// The EMT plant's running state: what initialization fixes from the parameters, the circuit's
@@ -245,6 +274,8 @@ pub struct PlantState {
     /// Rebuilt on demand after a restore.
     #[serde(skip)]
     cache: Cache,
+    #[serde(skip)]
+    bench_cache: bench::BenchCache,
 }
 
 const PHASES: [&str; 3] = ["a", "b", "c"];
@@ -695,6 +726,8 @@ impl Plant {
             }
             None => (None, false, [0.0; 7]),
         };
+        let (v_step, ramp) = self.source_events(s, thevenin.is_some())?;
+        let bench = self.bench_fixed(s, &units, &loads, thevenin, s_base, omega_b)?;
         Ok(Fixed {
             net: Network {
                 units,
@@ -712,6 +745,10 @@ impl Plant {
             f_filter_t,
             t_on,
             pll_gains: (kp, ki),
+            v_step,
+            ramp,
+            f_nom,
+            bench,
         })
     }
 }
@@ -733,10 +770,42 @@ impl Fixed {
         }
     }
 
+    /// The Thevenin source's amplitude and the phase of its oscillator at the start of the step
+    /// `[t, t + h]` (`t0` the run's start, `delta` the swing's angle): with a frequency ramp the
+    /// ramp's angle at the step's middle, so the oscillator, turning at `ω_b` over the step,
+    /// passes through the source's exact angle there.
+    fn source_phase(&self, t: f64, h: f64, t0: f64, delta: f64) -> (f64, f64) {
+        let (e, angle) = self.source(t);
+        let mut phase = self.omega_b * (t - t0) + angle + delta;
+        if let Some(ramp) = self.ramp_angle(t + 0.5 * h) {
+            phase += ramp;
+        }
+        (e, phase)
+    }
+
+    /// The frequency ramp's angle at `t` (rad): `2π ∫ Δf`, `Δf` rising at RoCoF from `t_r` for
+    /// the duration, then held.
+    fn ramp_angle(&self, t: f64) -> Option<f64> {
+        let (rocof, at, dur) = self.ramp?;
+        let tau = (t - at).max(0.0);
+        let ramped = tau.min(dur);
+        Some(2.0 * PI * rocof * (0.5 * ramped * ramped + dur * (tau - ramped).max(0.0)))
+    }
+
+    /// The frequency ramp's deviation at `t`, Hz.
+    fn ramp_df(&self, t: f64) -> f64 {
+        self.ramp
+            .map_or(0.0, |(rocof, at, dur)| rocof * (t - at).clamp(0.0, dur))
+    }
+
     /// The Thevenin source's amplitude and angle over the step that starts at `t`.
     fn source(&self, t: f64) -> (f64, f64) {
         let [e, angle, dip, dip_t, dur, jump, jump_t] = self.source;
         let tol = 1e-9 * t.abs().max(1.0);
+        let e = match self.v_step {
+            Some((de, at)) if t >= at - tol => e + de,
+            _ => e,
+        };
         let dipped = dip > 0.0 && t >= dip_t - tol && t < dip_t + dur - tol;
         let jumped = t >= jump_t - tol;
         (
@@ -807,6 +876,12 @@ impl Plant {
             s[*r] = x;
         }
         s[self.pcc_mag] = dvpp_math::hypot(vp[0], vp[1]);
+        self.write_meters_and_energies(fixed, run, s, net.stored(&z));
+    }
+
+    /// Write the PLL's measurements and the energy accounts (`ac_stored` given).
+    fn write_meters_and_energies(&self, fixed: &Fixed, run: &Run, s: &mut Store, ac_stored: f64) {
+        let net = &fixed.net;
         s[self.pcc_df] = run.pll.dw / fixed.omega_b;
         s[self.pcc_theta] = wrap(run.pll.theta);
         let e = &run.energy;
@@ -818,7 +893,13 @@ impl Plant {
         s[ev.ac_loss] = e.ac_loss;
         s[ev.thevenin] = e.thevenin;
         s[ev.loads] = e.loads;
-        s[ev.ac_stored] = net.stored(&z);
+        s[ev.ac_stored] = ac_stored;
+        s[self.bench.energy_fault] = e.fault;
+        s[self.bench.energy_switching] = e.switching;
+        if let Some(r) = self.bench.f_source {
+            let ramp = run.t_end.map_or(0.0, |t| fixed.ramp_df(t));
+            s[r] = 1.0 + run.dw + ramp / fixed.f_nom;
+        }
     }
 }
 
@@ -943,6 +1024,7 @@ impl Model for Plant {
             loads: out(v, "energy.loads", "MJ", "energy the loads consumed since initialization"),
             ac_stored: out(v, "energy.ac_stored", "MJ", "magnetic and electric energy stored in the ac circuit (ac + thevenin - ac_loss - loads = change of this)"),
         };
+        let bench = Self::declare_bench(v, &layout);
         Ok(Plant {
             layout_units: layout.units.len(),
             s_base,
@@ -962,6 +1044,7 @@ impl Model for Plant {
             pcc_f,
             pcc_f_filter_t,
             energy,
+            bench,
         })
     }
 
@@ -972,6 +1055,9 @@ impl Model for Plant {
         _ctx: &mut Context,
     ) -> Result<PlantState, ModelError> {
         let fixed = self.fixed(s)?;
+        if fixed.bench.is_some() {
+            return self.initialize_bench(fixed, s);
+        }
         let net = &fixed.net;
         let topo = fixed.topology(0.0);
         let s0: Vec<C> = self
@@ -1034,6 +1120,9 @@ impl Model for Plant {
             dw: 0.0,
             p_m,
             df_lag: 0.0,
+            t_end: None,
+            btopo: Default::default(),
+            fault_last: Vec::new(),
         };
         for u in &self.units {
             s[u.m_clamped] = false;
@@ -1043,6 +1132,7 @@ impl Model for Plant {
             fixed,
             run,
             cache: Cache::default(),
+            bench_cache: Default::default(),
         })
     }
 
@@ -1054,14 +1144,23 @@ impl Model for Plant {
         h: f64,
         ctx: &mut Context,
     ) -> Result<(), ModelError> {
-        let PlantState { fixed, run, cache } = state;
-        let net = &fixed.net;
+        let PlantState {
+            fixed,
+            run,
+            cache,
+            bench_cache,
+        } = state;
         let t0 = *run.t0.get_or_insert(t);
+        run.t_end = Some(t + h);
+        if fixed.bench.is_some() {
+            return self.step_bench(fixed, run, bench_cache, s, t, h, t0, ctx);
+        }
+        let net = &fixed.net;
         let topo = fixed.topology(t);
         // The source at the step's start, from the absolute time (an event acts here).
         if topo.thevenin {
-            let (e, angle) = fixed.source(t);
-            let c = dvpp_math::cpolar(e, fixed.omega_b * (t - t0) + angle + run.delta);
+            let (e, phase) = fixed.source_phase(t, h, t0, run.delta);
+            let c = dvpp_math::cpolar(e, phase);
             run.e = [c.re, c.im];
         }
         let mut z = Self::augmented(fixed, run);
@@ -1086,8 +1185,51 @@ impl Model for Plant {
             }
         }
         let d = cache.get(net, &topo, h).map_err(ModelError)?;
+        self.account(fixed, run, s, &d.forms, &z, h, topo.thevenin)?;
+        let z1 = &d.phi * &z;
+        let nx = run.x.len();
+        run.x.copy_from_slice(z1.rows(0, nx).as_slice());
+        run.e = [z1[net.e()], z1[net.e() + 1]];
+        run.topo = topo;
+        run.meter(fixed, net.vpcc(&topo, &z1), h);
+        self.write_outputs(fixed, run, s);
+        Ok(())
+    }
+}
+
+impl Run {
+    /// The measurement PLL and the PCC frequency's lag over a step, on the PCC voltage `vp`
+    /// (αβ) at its end.
+    fn meter(&mut self, fixed: &Fixed, vp: [f64; 2], h: f64) {
+        let (kp, ki) = fixed.pll_gains;
+        self.pll.step(vp, h, fixed.omega_b, kp, ki);
+        let df = self.pll.dw / fixed.omega_b;
+        self.df_lag += if fixed.f_filter_t > 0.0 {
+            -dvpp_math::expm1(-h / fixed.f_filter_t) * (df - self.df_lag)
+        } else {
+            df - self.df_lag
+        };
+    }
+}
+
+impl Plant {
+    /// The energies over a step from the exact forms `forms` at the step's start `z`: each
+    /// unit's converter energy into its dc link (which steps), the ac losses, the source's and
+    /// the loads' energies; then the swinging source over the step.
+    #[allow(clippy::too_many_arguments)]
+    fn account(
+        &self,
+        fixed: &Fixed,
+        run: &mut Run,
+        s: &mut Store,
+        forms: &[nalgebra::DMatrix<f64>],
+        z: &DVector<f64>,
+        h: f64,
+        thevenin: bool,
+    ) -> Result<(), ModelError> {
+        let net = &fixed.net;
         let n_units = net.units.len();
-        let energy = |i: usize| network::quadratic(&d.forms[i], &z);
+        let energy = |i: usize| network::quadratic(&forms[i], z);
         for (k, u) in self.units.iter().enumerate() {
             let e_ac = energy(k);
             let p = &fixed.dc[k];
@@ -1112,7 +1254,7 @@ impl Model for Plant {
         run.energy.loads += energy(n_units + network::FORM_LOADS);
         // The swinging source over the step, on its mean electrical power (exact for the linear
         // swing at that power; the angle it turns enters at the next step's start).
-        if let (Some((h_th, d_th)), true) = (fixed.swing, topo.thevenin) {
+        if let (Some((h_th, d_th)), true) = (fixed.swing, thevenin) {
             let p_e = e_th / (h * net.s_base);
             let dw0 = run.dw;
             run.dw = if d_th > 0.0 {
@@ -1123,21 +1265,6 @@ impl Model for Plant {
             };
             run.delta += fixed.omega_b * h * 0.5 * (dw0 + run.dw);
         }
-        let z1 = &d.phi * &z;
-        let nx = run.x.len();
-        run.x.copy_from_slice(z1.rows(0, nx).as_slice());
-        run.e = [z1[net.e()], z1[net.e() + 1]];
-        run.topo = topo;
-        let vp = net.vpcc(&topo, &z1);
-        let (kp, ki) = fixed.pll_gains;
-        run.pll.step(vp, h, fixed.omega_b, kp, ki);
-        let df = run.pll.dw / fixed.omega_b;
-        run.df_lag += if fixed.f_filter_t > 0.0 {
-            -dvpp_math::expm1(-h / fixed.f_filter_t) * (df - run.df_lag)
-        } else {
-            df - run.df_lag
-        };
-        self.write_outputs(fixed, run, s);
         Ok(())
     }
 }

@@ -106,7 +106,7 @@ impl Unit {
 /// Largest number of points of coupling.
 pub const MAX_POCS: usize = 16;
 
-/// Everything the operator is configured with; [`Params::check`] validates it.
+/// Everything the operator is configured with; [`Operator::initialize`] validates it (the structure alone: [`Params::check_structure`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Params {
     /// The DERs served, in the order of the FMU's `der[k]` (k = 1, 2, ...).

@@ -62,7 +62,7 @@
 //! # Test bench
 //! Faults (balanced and unbalanced, at the PCC or the source bus), a line and a switchable
 //! parallel line from the source bus, the source's breaker and grounded units change the circuit:
-//! when any of them is configured the plant runs on [`bench`]'s αβ0 circuit (parameters and
+//! when any of them is configured the plant runs on [`mod@bench`]'s αβ0 circuit (parameters and
 //! steps in `events.rs`); without them it runs on the balanced αβ circuit above, unchanged.
 //!
 //! # Initialization

@@ -212,7 +212,7 @@ impl DcSide {
         self.reserve_spent
     }
 
-    /// After a step: the reserve is spent when the link is within [`RESERVE_SPENT`] of its usable
+    /// After a step: the reserve is spent when the link is within `RESERVE_SPENT` of its usable
     /// energy from `v_min` or `v_max`, and available again once the dc limit's episode has ended
     /// (`dc_limit_on` false: the limit has not acted for [`super::limits::RELEASE`]).
     pub fn update_reserve(&mut self, dc_limit_on: bool, cap: f64) {

@@ -396,7 +396,6 @@ impl PhasorUnit {
         h: f64,
     ) -> Result<PhasorCommand, Error> {
         let t = m.t;
-        let p = self.params;
         let mut notices = Vec::new();
         let following = matches!(self.channel, Channel::Following(_));
         if following && self.common.startup.is_none() && m.v < PLL_V_MIN {
@@ -415,6 +414,7 @@ impl PhasorUnit {
             self.step_dc(m, h, &mut notices);
             return Ok(self.command(m, notices));
         }
+        let p = &self.params;
         let to_dvpp = p.rating.s_base / p.rating.s_dvpp;
         let to_rated = p.rating.s_base / p.rating.s_rated;
         let dv = m.v - self.common.v0;
@@ -466,9 +466,9 @@ impl PhasorUnit {
             request,
             modulation,
         } = match &mut self.channel {
-            Channel::Forming(f) => f.step(&mut self.common, &p, m, &mut self.out, &at)?,
+            Channel::Forming(f) => f.step(&mut self.common, p, m, &mut self.out, &at)?,
             Channel::Following(g) => {
-                g.step(&mut self.common, &p, &mut self.out, &at, &mut notices)?
+                g.step(&mut self.common, p, &mut self.out, &at, &mut notices)?
             }
         };
         let lim = &mut self.common.limit;

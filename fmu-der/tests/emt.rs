@@ -105,10 +105,11 @@ fn run(
     t_end: f64,
     start: &[(&str, f64)],
 ) -> (Vec<f64>, Vec<f64>, Harness<DerEmt>) {
-    run_unit(None, mode, p0, df, t_end, start)
+    run_unit(None, mode, p0, df, t_end, start, &[])
 }
 
-/// [`run`] for one of the DER presets (`None`: the generic unit).
+/// [`run`] for one of the DER presets (`None`: the generic unit), with the tunable parameters
+/// `tuned` set after initialization, before the first step.
 fn run_unit(
     preset: Option<&str>,
     mode: i32,
@@ -116,6 +117,7 @@ fn run_unit(
     df: f64,
     t_end: f64,
     start: &[(&str, f64)],
+    tuned: &[(&str, f64)],
 ) -> (Vec<f64>, Vec<f64>, Harness<DerEmt>) {
     let mut plant = Plant::at(p0 * S_BASE / S_RATED, 0.0);
     let mut h = match preset {
@@ -135,6 +137,9 @@ fn run_unit(
     assert_eq!(h.enter_initialization_mode(), Status::Ok);
     plant.measure(&mut h, 0.0);
     assert_eq!(h.exit_initialization_mode(), Status::Ok);
+    for (name, value) in tuned {
+        assert_eq!(h.try_set(name, *value), Status::Ok, "{name}");
+    }
     let (mut p, mut f) = (vec![], vec![]);
     let n = (t_end / H).round() as usize;
     // The phase of the grid frame at the frequency step, kept continuous.
@@ -169,6 +174,26 @@ fn grid_forming_starts_flat_on_a_stiff_grid() {
     println!("flat start: largest |p - p0| {dp:.2e} pu, |df| {dfm:.2e} pu over 0.2 s");
     assert!(dp < 1e-3, "{dp}");
     assert!(dfm < 1e-5, "{dfm}");
+}
+
+/// A host retunes a running unit between steps (the layer tells the adapter a parameter was
+/// set): from then on it moves exactly as a unit built with those values, and not as one left
+/// alone. Grid-forming: the q PI's gains; grid-following: the PLL's.
+#[test]
+fn tunable_parameters_set_between_steps_take_effect_at_the_next_step() {
+    for (mode, tuned) in [
+        (1, [("qpi.kp", 0.2), ("qpi.ki", 2.0)]),
+        (2, [("pll.kp", 30.0), ("pll.ki", 100.0)]),
+    ] {
+        let (built, _, _) = run_unit(None, mode, 0.3, -1e-3, 0.3, &tuned, &[]);
+        let (retuned, _, _) = run_unit(None, mode, 0.3, -1e-3, 0.3, &[], &tuned);
+        let (alone, _, _) = run_unit(None, mode, 0.3, -1e-3, 0.3, &[], &[]);
+        assert_eq!(built, retuned, "mode {mode}: retuned between steps");
+        assert_ne!(
+            built, alone,
+            "mode {mode}: the tuned values change the response"
+        );
+    }
 }
 
 /// The droop law at the grid's frequency: `Δp = -m D Δf` on S_dvpp (m = mu_p = 1 for the
@@ -209,7 +234,7 @@ fn both_modes_meet_the_droop_law_on_a_frequency_step() {
 #[test]
 fn case_study_units_settle_on_a_stiff_grid_with_the_virtual_resistance() {
     for preset in ["wind", "pv", "bess"] {
-        let (p, f, _) = run_unit(Some(preset), 1, 0.3, -1e-3, 5.0, &[]);
+        let (p, f, _) = run_unit(Some(preset), 1, 0.3, -1e-3, 5.0, &[], &[]);
         let last = &p[p.len() - (1.0 / H) as usize..];
         let mean = last.iter().sum::<f64>() / last.len() as f64;
         let ringing = last.iter().map(|x| (x - mean).abs()).fold(0.0, f64::max);
@@ -219,7 +244,7 @@ fn case_study_units_settle_on_a_stiff_grid_with_the_virtual_resistance() {
         );
         assert!(ringing < 0.01, "{preset}: ringing {ringing}");
         assert!((f.last().unwrap() + 1e-3).abs() < 5e-5, "{preset}: df");
-        let (p0, _, _) = run_unit(Some(preset), 1, 0.3, -1e-3, 1.0, &[("vi.r", 0.0)]);
+        let (p0, _, _) = run_unit(Some(preset), 1, 0.3, -1e-3, 1.0, &[("vi.r", 0.0)], &[]);
         let swing = p0.iter().map(|x| (x - 0.3).abs()).fold(0.0, f64::max);
         println!("{preset}, vi.r = 0: largest |p - p0| {swing:.3} pu");
         assert!(

@@ -26,9 +26,8 @@
 //! holds (flux linkage is conserved around every loop that stays closed). The magnetic energy
 //! this removes is the switching account, so the energy balance closes.
 
-use crate::network::{Branch, UnitData};
+use crate::network::{exact_discretization, Branch, UnitData};
 use crate::steady::C;
-use dvpp_control::ss::expm;
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
@@ -699,30 +698,16 @@ impl Bench {
 
     /// The exact discretization at step `h` for `topo` (refused as in [`crate::network`]).
     pub fn discretize(&self, topo: &BenchTopo, h: f64) -> Result<BenchDiscrete, String> {
-        let n = self.built.n;
-        let mh = self.continuous(topo) * h;
-        let norm = (0..n)
-            .map(|j| mh.column(j).iter().map(|v| v.abs()).sum::<f64>())
-            .fold(0.0f64, f64::max);
-        if !(norm.is_finite() && norm <= 1_048_576.0) {
-            return Err(format!(
+        let (phi, forms) = exact_discretization(
+            self.continuous(topo) * h,
+            self.energy_rates(topo),
+            h,
+        )
+        .map_err(|norm| {
+            format!(
                 "the test bench's circuit cannot be discretized at h = {h} s: |M h| = {norm:e} (the step spans too many time constants of the fastest mode: a fault's R/X or a parameter is extreme)"
-            ));
-        }
-        let phi = expm(&mh);
-        let forms = self
-            .energy_rates(topo)
-            .into_iter()
-            .map(|q| {
-                let mut c = DMatrix::zeros(2 * n, 2 * n);
-                c.view_mut((0, 0), (n, n)).copy_from(&(-mh.transpose()));
-                c.view_mut((0, n), (n, n)).copy_from(&(q * h));
-                c.view_mut((n, n), (n, n)).copy_from(&mh);
-                let f = expm(&c);
-                let w = f.view((n, n), (n, n)).transpose() * f.view((0, n), (n, n));
-                (&w + w.transpose()) * 0.5
-            })
-            .collect();
+            )
+        })?;
         Ok(BenchDiscrete {
             h,
             topo: *topo,

@@ -282,31 +282,16 @@ impl Network {
     /// large (a step of many time constants of the fastest mode, or extreme parameters) that
     /// the scaling and squaring of the exponential would lose all accuracy.
     pub fn discretize(&self, topo: &Topology, h: f64) -> Result<Discrete, String> {
-        let n = self.n();
-        let mh = self.continuous(topo) * h;
-        let norm = (0..n)
-            .map(|j| mh.column(j).iter().map(|v| v.abs()).sum::<f64>())
-            .fold(0.0f64, f64::max);
-        if !(norm.is_finite() && norm <= MAX_NORM) {
-            return Err(format!(
+        let (phi, forms) = exact_discretization(
+            self.continuous(topo) * h,
+            self.energy_rates(topo),
+            h,
+        )
+        .map_err(|norm| {
+            format!(
                 "the circuit cannot be discretized at h = {h} s: |M h| = {norm:e} (the step spans too many time constants of the fastest mode, or a parameter is extreme)"
-            ));
-        }
-        let phi = expm(&mh);
-        let forms = self
-            .energy_rates(topo)
-            .into_iter()
-            .map(|q| {
-                // Van Loan: exp([[-Mᵀ, Q], [0, M]] h) = [[·, F12], [0, Φ]], ∫ = Φᵀ F12.
-                let mut c = DMatrix::zeros(2 * n, 2 * n);
-                c.view_mut((0, 0), (n, n)).copy_from(&(-mh.transpose()));
-                c.view_mut((0, n), (n, n)).copy_from(&(q * h));
-                c.view_mut((n, n), (n, n)).copy_from(&mh);
-                let f = expm(&c);
-                let w = f.view((n, n), (n, n)).transpose() * f.view((0, n), (n, n));
-                (&w + w.transpose()) * 0.5
-            })
-            .collect();
+            )
+        })?;
         Ok(Discrete {
             h,
             topo: *topo,
@@ -318,6 +303,39 @@ impl Network {
 
 /// Largest 1-norm of `M h` accepted (2^20: twenty squarings).
 const MAX_NORM: f64 = 1_048_576.0;
+
+/// The exact discretization of `dx/dt = M x` over one step, from `mh` = `M h`: the transition
+/// `Φ = exp(M h)` and, per energy rate `x' Q x`, the symmetric form `W` with
+/// `x₀' W x₀ = ∫₀ʰ x' Q x dt` (Van Loan: `exp([[-Mᵀ, Q], [0, M]] h) = [[·, F12], [0, Φ]]`,
+/// `∫ = Φᵀ F12`). Refused with the 1-norm of `M h` when it is not finite or beyond
+/// [`MAX_NORM`], where scaling and squaring would lose all accuracy.
+pub(crate) fn exact_discretization(
+    mh: DMatrix<f64>,
+    rates: Vec<DMatrix<f64>>,
+    h: f64,
+) -> Result<(DMatrix<f64>, Vec<DMatrix<f64>>), f64> {
+    let n = mh.nrows();
+    let norm = (0..n)
+        .map(|j| mh.column(j).iter().map(|v| v.abs()).sum::<f64>())
+        .fold(0.0f64, f64::max);
+    if !(norm.is_finite() && norm <= MAX_NORM) {
+        return Err(norm);
+    }
+    let phi = expm(&mh);
+    let forms = rates
+        .into_iter()
+        .map(|q| {
+            let mut c = DMatrix::zeros(2 * n, 2 * n);
+            c.view_mut((0, 0), (n, n)).copy_from(&(-mh.transpose()));
+            c.view_mut((0, n), (n, n)).copy_from(&(q * h));
+            c.view_mut((n, n), (n, n)).copy_from(&mh);
+            let f = expm(&c);
+            let w = f.view((n, n), (n, n)).transpose() * f.view((0, n), (n, n));
+            (&w + w.transpose()) * 0.5
+        })
+        .collect();
+    Ok((phi, forms))
+}
 
 /// The circuit sampled at one step for one topology.
 #[derive(Debug, Clone)]

@@ -202,22 +202,74 @@ impl Masters {
             &bin.join("bcryptprimitives.dll"),
         );
         let prefix = Path::new(env!("CARGO_TARGET_TMPDIR")).join("wineprefix");
-        Some(Masters {
+        let masters = Masters {
             wine,
             native,
             exe,
             prefix,
-        })
+        };
+        masters.make_prefix();
+        Some(masters)
+    }
+
+    /// Make the wine prefix once, before any test program runs under wine: `wineboot --init`,
+    /// then wait for the prefix's wineserver to end (it writes the registry when it does).
+    /// Left to the first program started under wine, the prefix is made by that program's own
+    /// start, and on a fresh machine that start failed ("could not load kernel32.dll").
+    fn make_prefix(&self) {
+        let ready = |p: &Path| {
+            p.join("system.reg").is_file()
+                && p.join("drive_c/windows/system32/kernel32.dll").is_file()
+        };
+        if ready(&self.prefix) {
+            return;
+        }
+        let _ = std::fs::remove_dir_all(&self.prefix);
+        let mut boot = Command::new(&self.wine);
+        boot.args(["wineboot", "--init"]);
+        let out = self
+            .environment(&mut boot)
+            .output()
+            .expect("start wineboot");
+        assert!(
+            out.status.success(),
+            "wineboot --init in {}: {}\n{}",
+            self.prefix.display(),
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        // The wineserver that belongs to this loader (Debian keeps it beside `wine64`).
+        let beside = self.wine.with_file_name("wineserver");
+        let server = if beside.is_file() {
+            beside
+        } else {
+            "wineserver".into()
+        };
+        let mut wait = Command::new(&server);
+        let waited = self.environment(&mut wait).arg("--wait").status();
+        assert!(
+            waited.is_ok_and(|s| s.success()) && ready(&self.prefix),
+            "the wine prefix {} is not complete after wineboot --init and {} --wait \
+             (no system.reg or system32/kernel32.dll)\n{}",
+            self.prefix.display(),
+            server.display(),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+
+    /// The environment every wine process of the tests runs in.
+    fn environment<'c>(&self, c: &'c mut Command) -> &'c mut Command {
+        c.env("WINEPREFIX", &self.prefix)
+            .env("WINEDEBUG", "-all")
+            // No Mono or Gecko installer prompts when the prefix is made.
+            .env("WINEDLLOVERRIDES", "mscoree,mshtml=")
     }
 
     /// The Windows master under wine, ready for its arguments.
     fn windows(&self) -> Command {
         let mut c = Command::new(&self.wine);
-        c.arg(&self.exe)
-            .env("WINEPREFIX", &self.prefix)
-            .env("WINEDEBUG", "-all")
-            // No Mono or Gecko installer prompts when the prefix is made.
-            .env("WINEDLLOVERRIDES", "mscoree,mshtml=");
+        c.arg(&self.exe);
+        self.environment(&mut c);
         c
     }
 }

@@ -93,7 +93,10 @@ impl Level {
             q: (1..=3)
                 .map(|k| column(t, &format!("grid.der[{k}].q")))
                 .collect(),
-            theta: UNITS.iter().map(|u| column(t, &format!("{u}.theta"))).collect(),
+            theta: UNITS
+                .iter()
+                .map(|u| column(t, &format!("{u}.theta")))
+                .collect(),
         }
     }
 
@@ -107,7 +110,10 @@ impl Level {
             q: (1..=3)
                 .map(|k| column(t, &format!("plant.der[{k}].q")))
                 .collect(),
-            theta: UNITS.iter().map(|u| column(t, &format!("{u}.theta"))).collect(),
+            theta: UNITS
+                .iter()
+                .map(|u| column(t, &format!("{u}.theta")))
+                .collect(),
         }
     }
 
@@ -212,7 +218,11 @@ fn the_same_fault_at_phasor_and_emt_level() {
         row(format!("{name} i_q"), &|m| m.iq[k], None);
         row(format!("{name} angle (rad)"), &|m| m.excursion[k], None);
     }
-    row("v recovery (s)".into(), &|m| m.v_recovery, Some(TOL_RECOVERY));
+    row(
+        "v recovery (s)".into(),
+        &|m| m.v_recovery,
+        Some(TOL_RECOVERY),
+    );
     row("p swing, 0.5 s".into(), &|m| m.p_swing, None);
     row("p swing, last 1 s".into(), &|m| m.p_swing_late, None);
     // Both levels see the fault (about half the voltage retained) at the current limit.

@@ -18,7 +18,7 @@ studies:
                              case study II over ε with N (default 20) Monte Carlo load steps
                              per family (at bus 2, at a random bus; seed 1)
   outage                     case study II's outage of SG1 and SG3, a verdict per ε
-  ride-through               case study I's DVPP at EMT level through the grid codes' events
+  ride-through [--only TEXT] case study I's DVPP at EMT level through the grid codes' events
                              (dips, faults, 25° jumps, 5 Hz/s) per option, mode and SCR";
 
 fn main() -> ExitCode {
@@ -37,7 +37,7 @@ fn main() -> ExitCode {
         Some("case3") => dvpp_studies::case3::case3(&root, &args[1..]),
         Some("sweep") => dvpp_studies::sweep::sweep(&root, &args[1..]),
         Some("outage") if args.len() == 1 => dvpp_studies::outage::outage(&root).map(|_| ()),
-        Some("ride-through") if args.len() == 1 => dvpp_studies::ride_through::ride_through(&root),
+        Some("ride-through") => dvpp_studies::ride_through::ride_through(&root, &args[1..]),
         _ => Err(USAGE.into()),
     };
     match result {

@@ -19,6 +19,7 @@
 
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
+use dvpp_cosim::table::csv_field;
 use dvpp_cosim::Table;
 use dvpp_report::plot::{Figure, Panel, Style};
 use std::fmt::Write as _;
@@ -199,6 +200,18 @@ pub struct Traces {
     pub p: Vec<f64>,
 }
 
+impl Job {
+    /// Its name: event, control and SCR.
+    pub fn name(&self) -> String {
+        format!(
+            "{}, {}, SCR {}",
+            self.event.name(),
+            self.control.name(),
+            self.scr
+        )
+    }
+}
+
 /// Every run of the table.
 pub fn jobs() -> Vec<Job> {
     let mut out = Vec::new();
@@ -366,7 +379,12 @@ fn measure(job: Job, table: Result<Table, String>) -> Row {
 
 /// Run `jobs` on `workers` threads with progress, from the bundled systems under `root/dist/`;
 /// rows in job order.
-pub fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, String> {
+pub fn run_all(
+    root: &Path,
+    jobs: Vec<Job>,
+    workers: usize,
+    keep: Option<&Path>,
+) -> Result<Vec<Row>, String> {
     let mut bases = Vec::new();
     for control in [Control::FormingA, Control::FormingB] {
         let name = control.system();
@@ -378,6 +396,7 @@ pub fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, 
         ));
     }
     let bases = Arc::new(bases);
+    let keep = keep.map(Path::to_path_buf);
     let n = jobs.len();
     let queue = Arc::new(Mutex::new(
         jobs.into_iter().enumerate().rev().collect::<Vec<_>>(),
@@ -386,7 +405,7 @@ pub fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, 
     let started = std::time::Instant::now();
     let handles: Vec<_> = (0..workers)
         .map(|_| {
-            let (queue, bases, tx) = (queue.clone(), bases.clone(), tx.clone());
+            let (queue, bases, tx, keep) = (queue.clone(), bases.clone(), tx.clone(), keep.clone());
             std::thread::spawn(move || loop {
                 let Some((i, job)) = queue.lock().expect("queue").pop() else {
                     break;
@@ -410,6 +429,12 @@ pub fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, 
                         })
                         .map_err(|e| e.to_string())
                 });
+                if let (Some(dir), Ok(t)) = (&keep, &table) {
+                    let path = dir.join(format!("{}.csv", file_name(&job.name())));
+                    if let Err(e) = write_table(&path, t) {
+                        eprintln!("ride-through: {}: {e}", path.display());
+                    }
+                }
                 if tx.send((i, measure(job, table))).is_err() {
                     break;
                 }
@@ -513,8 +538,8 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
         let _ = writeln!(
             text,
             "{},{},{},{},{},{},{},{},{},{},{}",
-            r.job.event.name(),
-            r.job.control.name(),
+            csv_field(&r.job.event.name()),
+            csv_field(r.job.control.name()),
             r.job.scr,
             r.rides_through,
             r.sync_hz,
@@ -523,7 +548,7 @@ fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
             r.i_reactive,
             r.recovery,
             r.energy_residual,
-            r.error.as_deref().unwrap_or("").replace([',', '\n'], ";")
+            csv_field(r.error.as_deref().unwrap_or(""))
         );
     }
     std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
@@ -575,18 +600,62 @@ fn figure(rows: &[Row]) -> Figure {
     fig.panel(panel).columns(3)
 }
 
-/// `cargo xtask ride-through`: every run, `results/ride_through.csv`, the figure
+/// A run's name as a file name: letters, digits, `.`, `+` and `-`, the rest `_`.
+fn file_name(name: &str) -> String {
+    name.chars()
+        .map(|c| match c {
+            'a'..='z' | 'A'..='Z' | '0'..='9' | '.' | '+' | '-' => c,
+            _ => '_',
+        })
+        .collect()
+}
+
+/// A run's recorded outputs as CSV.
+fn write_table(path: &Path, t: &Table) -> std::io::Result<()> {
+    let mut w = std::io::BufWriter::new(std::fs::File::create(path)?);
+    dvpp_cosim::table::write_header(&mut w, &t.columns)?;
+    for row in &t.rows {
+        dvpp_cosim::table::write_row(&mut w, row)?;
+    }
+    std::io::Write::flush(&mut w)
+}
+
+/// `cargo xtask ride-through [--only TEXT]`: every run, `results/ride_through.csv`, the figure
 /// `tests/figures/ride_through.svg` and the table between `ride-through:begin` and
-/// `ride-through:end` in docs/emt-unit.md.
-pub fn ride_through(root: &Path) -> Result<(), String> {
+/// `ride-through:end` in docs/emt-unit.md; with `--only`, the runs whose name (event, control,
+/// SCR) contains TEXT, each run's recorded outputs in `results/ride_through/`, and no figure or
+/// table.
+pub fn ride_through(root: &Path, args: &[String]) -> Result<(), String> {
+    let only = match args {
+        [] => None,
+        [flag, text] if flag == "--only" => Some(text.as_str()),
+        _ => return Err("ride-through: usage: ride-through [--only TEXT]".into()),
+    };
     let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let all = jobs();
+    let mut all = jobs();
+    if let Some(text) = only {
+        all.retain(|j| j.name().contains(text));
+        if all.is_empty() {
+            return Err(format!(
+                "ride-through: no run's name contains '{text}' (names are like '{}')",
+                jobs()[0].name()
+            ));
+        }
+    }
     println!(
         "ride-through: {} runs of {T_END} s at 50 µs on {workers} threads",
         all.len()
     );
-    let rows = run_all(root, all, workers)?;
     std::fs::create_dir_all(root.join("results")).map_err(|e| e.to_string())?;
+    if only.is_some() {
+        let dir = root.join("results").join("ride_through");
+        std::fs::create_dir_all(&dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+        let rows = run_all(root, all, workers, Some(&dir))?;
+        print!("{}", table(&rows));
+        println!("ride-through: each run's outputs in {}", dir.display());
+        return Ok(());
+    }
+    let rows = run_all(root, all, workers, None)?;
     write_csv(&root.join("results").join("ride_through.csv"), &rows)?;
     crate::sweep::save_figure(root, &figure(&rows), "ride_through.svg")?;
     let table = table(&rows);

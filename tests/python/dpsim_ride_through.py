@@ -1,4 +1,4 @@
-"""Grid-code events in DPsim EMT: one dvpp_der_emt unit against a Thevenin grid through dips, faults, phase jumps and frequency ramps.
+"""Grid-code events in DPsim EMT: one dvpp_der_emt unit against a host-driven Thevenin grid (dips, faults, jumps, ramps).
 
 The events of our master's ``cargo xtask ride-through`` (studies/src/ride_through.rs), with
 DPsim's three-phase EMT domain (50 µs) as the plant: the generic 60 MVA unit of
@@ -260,7 +260,7 @@ class GridCircuit:
         self.net.cleanup()
 
 
-SIGNALS = ("t", "v", "p", "q", "i_max", "df", "f_grid", "grid_angle")
+SIGNALS = ("t", "v", "v_a", "p", "q", "i_max", "df", "f_grid", "grid_angle")
 
 
 def unit_data(params):
@@ -272,11 +272,11 @@ def unit_data(params):
 
 def run(event, control, scr, t_end=T_END, h=H_STEP):
     """One run; returns its signals (arrays up to the last solution before a trip: ``v`` the
-    PCC voltage's magnitude, ``p``, ``q`` the unit's power into the PCC on its rating, ``i_max``
-    the largest magnitude of the converter's phase currents (pu of the rated peak current),
-    ``df`` the FMU's, ``f_grid`` the grid's frequency (Hz), ``grid_angle`` the source node's
-    angle beyond ω_nom t from DPsim's solution), the trip (t, message) or None, and the wall
-    time."""
+    PCC voltage's space-vector magnitude, ``v_a`` its phase a (pu of v_r), ``p``, ``q`` the
+    unit's power into the PCC on its rating, ``i_max`` the largest magnitude of the converter's
+    phase currents (pu of the rated peak current), ``df`` the FMU's, ``f_grid`` the grid's
+    frequency (Hz), ``grid_angle`` the source node's angle beyond ω_nom t from DPsim's solution),
+    the trip (t, message) or None, and the wall time."""
     import fmpy.fmi2  # noqa: F401
     from fmpy.fmi1 import FMICallException
 
@@ -294,6 +294,7 @@ def run(event, control, scr, t_end=T_END, h=H_STEP):
     def record(j, t, meas, df):
         v, s = circuit.pcc()
         rec["t"][j], rec["v"][j], rec["p"][j], rec["q"][j] = t, abs(v), s.real, s.imag
+        rec["v_a"][j] = circuit.v_pcc.get()[0, 0] / V_R
         rec["i_max"][j] = max(abs(x) for x in meas[3:6])
         rec["df"][j] = df
         rec["grid_angle"][j] = circuit.source_angle(t)
@@ -365,13 +366,15 @@ def measure(rec):
 
 
 def stopped(message):
-    """The FMU's message up to its first ';', without table separators."""
+    """The FMU's message up to its first ';', without its "fmi2DoStep at t = …: " (the verdict
+    says when) and table separators."""
+    message = re.sub(r"^fmi2DoStep at t = [^:]*: ", "", message)
     return message.split(";")[0].strip().replace("|", "/")
 
 
 def verdict(m):
     if m["trip"] is not None:
-        return f"no: tripped at t = {m['trip'][0]:.5g} s: {stopped(m['trip'][1])}"
+        return f"no: tripped at t = {m['trip'][0]:.6g} s: {stopped(m['trip'][1])}"
     return "yes" if m["rides_through"] else f"no: {m['sync_hz']:.2f} Hz from the grid at the end"
 
 
@@ -403,8 +406,8 @@ def write_csv(path, rows):
 
 
 def write_traces(path, rec):
-    names = ("t", "v", "p", "q", "i_max", "df", "f_grid", "grid_angle")
-    np.savetxt(path, np.column_stack([rec[k] for k in names]), delimiter=",", header=",".join(names), comments="")
+    np.savetxt(path, np.column_stack([rec[k] for k in SIGNALS]), delimiter=",", header=",".join(SIGNALS),
+               comments="")
 
 
 def file_name(name):

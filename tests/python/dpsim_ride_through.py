@@ -1,4 +1,4 @@
-"""Grid-code events in DPsim EMT: one dvpp_der_emt unit against a host-driven Thevenin grid (dips, faults, jumps, ramps).
+"""Grid-code events in DPsim EMT: one dvpp_der_emt unit against a host-driven Thevenin grid.
 
 The events of our master's ``cargo xtask ride-through`` (studies/src/ride_through.rs), with
 DPsim's three-phase EMT domain (50 µs) as the plant: the generic 60 MVA unit of
@@ -44,9 +44,10 @@ unit's rating); recovery (from the event's end, until the unit's p stays within 
 rating of its mean over the last 0.2 s). A unit that stops with fmi2Error is "no: tripped at
 t = …" with its message.
 
-``python tests/python/dpsim_ride_through.py [--only TEXT]``: every run (or those whose name,
-"event, control, SCR x", contains TEXT), the Markdown table; all runs write
-results/dpsim_ride_through.csv, --only writes each run's traces to results/dpsim_ride_through/.
+``python tests/python/dpsim_ride_through.py [--only TEXT] [--docs docs/emt.md]``: every run (or
+those whose name, "event, control, SCR x", contains TEXT), the Markdown table; all runs write
+results/dpsim_ride_through.csv (and with --docs the table between the page's markers), --only
+writes each run's traces to results/dpsim_ride_through/.
 """
 import cmath
 import csv
@@ -410,6 +411,22 @@ def write_traces(path, rec):
                comments="")
 
 
+DOCS_BEGIN = "<!-- dpsim-ride-through: begin (python tests/python/dpsim_ride_through.py --docs docs/emt.md) -->"
+DOCS_END = "<!-- dpsim-ride-through: end -->"
+
+
+def write_docs(path, text):
+    """The table between the markers in the page at ``path``."""
+    with open(path) as f:
+        page = f.read()
+    if DOCS_BEGIN not in page or DOCS_END not in page:
+        sys.exit(f"{path}: the markers {DOCS_BEGIN!r} and {DOCS_END!r} are missing")
+    head, rest = page.split(DOCS_BEGIN, 1)
+    tail = rest.split(DOCS_END, 1)[1]
+    with open(path, "w") as f:
+        f.write(f"{head}{DOCS_BEGIN}\n{text}\n{DOCS_END}{tail}")
+
+
 def file_name(name):
     return re.sub(r"[^A-Za-z0-9.+-]", "_", name)
 
@@ -424,7 +441,10 @@ if __name__ == "__main__":
     sys.path.insert(0, os.path.dirname(__file__))
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--only", help="the runs whose name (event, control, SCR x) contains this")
+    parser.add_argument("--docs", help="write the table (all runs) between the markers in this page")
     args = parser.parse_args()
+    if args.docs and args.only:
+        sys.exit("--docs takes the table of all runs: not with --only")
     root = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..")
     todo = jobs()
     if args.only:
@@ -451,3 +471,6 @@ if __name__ == "__main__":
         path = os.path.join(root, "results", "dpsim_ride_through.csv")
         write_csv(path, rows)
         print(f"wrote {os.path.normpath(path)} ({time.perf_counter() - started:.0f} s)")
+        if args.docs:
+            write_docs(args.docs, table(rows))
+            print(f"wrote the table in {args.docs}")

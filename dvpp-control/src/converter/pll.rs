@@ -51,6 +51,15 @@ impl Pll {
         v.to_dq(self.theta)
     }
 
+    /// Hold: no sample of the voltage (it is too low to be measured, as in a fault); the frame
+    /// turns on at the frequency the integral holds, `ω_b + k_i ∫e`, for `h` seconds, and the
+    /// proportional path's contribution is dropped.
+    pub fn hold(&mut self, h: f64) {
+        self.delta_omega = self.integral;
+        self.theta = (self.theta + (self.omega_b + self.delta_omega) * h)
+            .rem_euclid(2.0 * std::f64::consts::PI);
+    }
+
     /// Take one sample of the voltage and advance the angle over `h` seconds.
     pub fn step(&mut self, v: Abc, h: f64) {
         let dq = self.frame(v);

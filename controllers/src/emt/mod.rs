@@ -168,9 +168,12 @@ pub struct EmtUnit {
     q_ref: f64,
     /// Grid-following: the voltage deviation through `vq.tau`.
     dv_lag: f64,
-    /// Grid-following: the grid-side and capacitor voltages through `REFERENCE_TAU` (dq, PLL
-    /// frame), from which the current reference is computed.
+    /// Grid-following: through `REFERENCE_TAU` (dq, PLL frame), the MV voltage with the
+    /// transformer's `L_t di_g/dt` (the PLL's input and the fault ride-through's voltage), its
+    /// phasor estimate `v_c - (R_t + jX_t) i_g` (the current reference's magnitude) and the
+    /// capacitor voltage.
     vg_lag: Dq,
+    vg_phasor: Dq,
     vc_lag: Dq,
     /// Grid-following: the PLL's frequency deviation through `FREQUENCY_TAU` (pu), which the
     /// p-f reference model reads.
@@ -179,13 +182,12 @@ pub struct EmtUnit {
     limited: bool,
     /// Grid-following fault ride-through: the voltage before the event (the estimate's
     /// magnitude through `V_PRE_TAU`, held during the event), whether the unit is in it, the
-    /// voltage deviation beyond the dead band through `FRT_TAU` (pu), the reactive grid-side
-    /// current reference when it began and the last sample's (PLL frame, pu of the rated peak).
+    /// voltage deviation beyond the dead band through `FRT_TAU` (pu), and the reactive
+    /// grid-side current reference before the event (PLL frame, pu of the rated peak).
     v_pre: f64,
     frt: bool,
     dv_frt: f64,
     iq_pre: f64,
-    iq_ref: f64,
     /// The converter voltage the last output asked for (dq, pu), for the converter power.
     v_m: Dq,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
@@ -312,6 +314,7 @@ impl EmtUnit {
             q_ref: q0,
             dv_lag: 0.0,
             vg_lag: vg,
+            vg_phasor: vg,
             vc_lag: fm.v_c,
             df_lag: 0.0,
             limited: false,
@@ -319,7 +322,6 @@ impl EmtUnit {
             frt: false,
             dv_frt: 0.0,
             iq_pre: -q0 / to_base / vg.norm(),
-            iq_ref: -q0 / to_base / vg.norm(),
             v_m,
             i_g_prev: fm.i_g,
             vg_prev: vg,
@@ -546,33 +548,43 @@ impl EmtUnit {
                 // reads the dc offsets of the currents after a voltage step (a 50 Hz component
                 // in dq, times X_t) as a swing of the voltage's angle of tens of degrees, on which
                 // the PLL swings by Hz and the current reference turns (docs/emt.md §9).
+                // The current reference's magnitude `|v|` stays on the phasor estimate: taken
+                // from `v_mv`, the derivative of the unit's own current closes a loop through it
+                // (measured on the generic unit at SCR 10: a sustained oscillation of the PLL's
+                // frequency by ±0.07 Hz and of the voltage by ±0.02 pu after a dip).
                 let k = -dvpp_math::expm1(-h / REFERENCE_TAU);
                 let di = (fm.i_g - self.i_g_prev) * (p.filter.l_t / (omega_b * h));
                 let v_mv = (vg + self.vg_prev) * 0.5 - di;
                 self.i_g_prev = fm.i_g;
                 self.vg_prev = vg;
                 self.vg_lag = self.vg_lag + (v_mv - self.vg_lag) * k;
+                self.vg_phasor = self.vg_phasor + (vg - self.vg_phasor) * k;
                 self.vc_lag = self.vc_lag + (fm.v_c - self.vc_lag) * k;
-                let (pr, qr) = ((p_set + dp) / to_base, self.q_ref / to_base);
-                let u = self.vg_lag.norm().max(1e-2);
+                // The active reference within what the primary source can take: a unit without
+                // storage (`[0, P_avail]`) cannot absorb more than its dc link's losses, and the
+                // p-f model's inertia and droop ask it to when the frequency rises (+5 Hz/s: the
+                // dc link charged to 1.3 pu, the converter saturated its modulation and lost
+                // synchronism).
+                let p_min = self.source_range(t)[0] / to_base - p.dc.g_dc;
+                let (pr, qr) = (((p_set + dp) / to_base).max(p_min), self.q_ref / to_base);
+                let u = self.vg_phasor.norm().max(1e-2);
                 let mut i_g = Dq {
                     d: pr / u,
                     q: -qr / u,
                 };
                 // Fault ride-through: beyond the dead band of the voltage before the event, the
-                // reactive current is the one at its start plus `K_FRT` times the deviation
-                // beyond the band (through `FRT_TAU`), the active current `p/|v|` as before;
-                // the reactive-first limit below keeps the sum within I_max.
-                let dev = self.v_pre - u;
+                // reactive current is the one before it plus `K_FRT` times the deviation beyond
+                // the band (through `FRT_TAU`, which also ramps it out after the event), the
+                // active current `p/|v|` as before; the reactive-first limit below keeps the sum
+                // within I_max.
+                let u_mv = self.vg_lag.norm();
+                let dev = self.v_pre - u_mv;
                 let band = if self.frt {
                     FRT_BAND - FRT_HYSTERESIS
                 } else {
                     FRT_BAND
                 };
                 let frt = dev.abs() > band;
-                if frt && !self.frt {
-                    self.iq_pre = self.iq_ref;
-                }
                 self.frt = frt;
                 let beyond = if frt {
                     dev - FRT_BAND * dev.signum()
@@ -581,11 +593,12 @@ impl EmtUnit {
                 };
                 self.dv_frt += -dvpp_math::expm1(-h / FRT_TAU) * (beyond - self.dv_frt);
                 if frt {
-                    i_g.q = self.iq_pre - K_FRT * self.dv_frt;
+                    i_g.q = self.iq_pre;
                 } else {
-                    self.v_pre += -dvpp_math::expm1(-h / V_PRE_TAU) * (u - self.v_pre);
+                    self.iq_pre = i_g.q;
+                    self.v_pre += -dvpp_math::expm1(-h / V_PRE_TAU) * (u_mv - self.v_pre);
                 }
-                self.iq_ref = i_g.q;
+                i_g.q -= K_FRT * self.dv_frt;
                 // Plus the capacitor's current: the converter-side reference, limited to I_max
                 // reactive current first.
                 let raw = i_g + self.vc_lag.rot90() * (omega * p.filter.c_f);
@@ -597,7 +610,7 @@ impl EmtUnit {
                 pll.ki = p.pll.ki;
                 // Below `PLL_HOLD` the voltage's angle is the unit's own current through the
                 // fault's impedance, not the grid's: the PLL holds its frequency.
-                if self.frt && u < PLL_HOLD {
+                if self.frt && u_mv < PLL_HOLD {
                     pll.hold(h);
                 } else {
                     pll.step(self.vg_lag.to_abc(rho), h);

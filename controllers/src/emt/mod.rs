@@ -533,7 +533,8 @@ impl EmtUnit {
                 // returns); in a fault ride-through it holds (the k-factor injection is the
                 // response, and the droop takes over from where it was when the voltage is back).
                 let step = kv * (dv - self.dv_lag);
-                if !(self.limited && step * self.dv_lag > 0.0) && !self.frt {
+                let away = self.limited && step * self.dv_lag > 0.0;
+                if !(away || self.frt) {
                     self.dv_lag += step;
                 }
                 self.q_ref = self.q0 + self.vq.step(self.dv_lag, h) / to_dvpp;

@@ -98,4 +98,28 @@ mod tests {
         let v = Dq { d: 1.0, q: 0.0 }.to_abc(wb * (1.0 + df) * t + phase);
         assert!(pll.frame(v).q.abs() < 1e-3, "{:?}", pll.frame(v));
     }
+
+    /// Held, the PLL turns on at the frequency its integral had, whatever the voltage; sampled
+    /// again it locks as before.
+    #[test]
+    fn holds_its_frequency() {
+        let (wb, h) = (2.0 * PI * 50.0, 50e-6);
+        let mut pll = Pll::new(60.0, 240.0, wb, 0.0);
+        let df = 0.004;
+        let mut t = 0.0;
+        for _ in 0..(6.0 / h) as usize {
+            pll.step(Dq { d: 1.0, q: 0.0 }.to_abc(wb * (1.0 + df) * t), h);
+            t += h;
+        }
+        let held = pll.delta_f();
+        let theta = pll.theta();
+        for _ in 0..2000 {
+            pll.hold(h);
+        }
+        // The proportional path's share (of a locked PLL's, ~1e-11 pu) is dropped.
+        assert!((pll.delta_f() - held).abs() < 1e-9, "{}", pll.delta_f());
+        let turned = (pll.theta() - theta).rem_euclid(2.0 * PI);
+        let expected = (wb * (1.0 + pll.delta_f()) * 2000.0 * h).rem_euclid(2.0 * PI);
+        assert!((turned - expected).abs() < 1e-9, "{turned} {expected}");
+    }
 }

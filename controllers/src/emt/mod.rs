@@ -566,7 +566,7 @@ impl EmtUnit {
                 // p-f model's inertia and droop ask it to when the frequency rises (+5 Hz/s: the
                 // dc link charged to 1.3 pu, the converter saturated its modulation and lost
                 // synchronism).
-                let p_min = self.source_range(t)[0] / to_base - p.dc.g_dc;
+                let p_min = self.source_range(t)[0] - p.dc.g_dc;
                 let (pr, qr) = (((p_set + dp) / to_base).max(p_min), self.q_ref / to_base);
                 let u = self.vg_phasor.norm().max(1e-2);
                 let mut i_g = Dq {

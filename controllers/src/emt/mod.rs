@@ -62,6 +62,11 @@ const REFERENCE_TAU: f64 = 1e-3;
 /// one unit (0.05 s is not at SCR 1.5).
 const FREQUENCY_TAU: f64 = 0.1;
 
+/// Grid-forming, option A: the virtual reactance (pu on `S_rated`) through which the voltage
+/// error a limited current reference leaves is read as power by the reference model (the
+/// frame's synchronizing power while limited; docs/emt.md, current limit and ride-through).
+const LIMIT_X: f64 = 0.2;
+
 /// One sample of the measurements (pu on `S_rated`, instantaneous), at time `t` (s).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct EmtMeasurement {
@@ -427,8 +432,21 @@ impl EmtUnit {
         let (v_m, df_next, reference_limited) = match &mut self.pf {
             PfReference::Forming(pf) => {
                 layer::set_p_gains(pf, p.adpf_p.kind, gains.mu_p, &lpf[..n_lpf])?;
+                // Option A while the last sample's current reference was limited: the
+                // reference model reads the delivered power plus the power a virtual reactance
+                // `LIMIT_X` would carry on the voltage `E - v_c` (weighted in as the limit cuts
+                // deeper; the frame's angle ahead of the grid's shows as `ev_q > 0`), so that
+                // the frame keeps synchronized with the grid while the current, hence the
+                // power, is held.
+                let limited = self.hinf.is_none() && self.inner.current_limited();
+                let p_model = if limited {
+                    let ev = self.inner.limit_error();
+                    pw + self.e * ev.q / LIMIT_X * to_base
+                } else {
+                    pw
+                };
                 let (df, dtheta) =
-                    layer::forming_angle(pf, (pw - p_set) * to_dvpp, h, p.rating.f_nom);
+                    layer::forming_angle(pf, (p_model - p_set) * to_dvpp, h, p.rating.f_nom);
                 // Option B: the state feedback on the reactive error of this sample; option A:
                 // the q PI sets E.
                 let b = match self.hinf.as_mut() {
@@ -458,6 +476,9 @@ impl EmtUnit {
                         Some(v)
                     }
                     None => {
+                        // While limited the q PI's integral holds (the reactive power follows
+                        // the limited current, not E).
+                        let held = self.e_int;
                         self.e = layer::voltage_matching(
                             &mut self.e_int,
                             self.q_ref,
@@ -468,6 +489,9 @@ impl EmtUnit {
                             p.qpi.e_max,
                             h,
                         );
+                        if limited {
+                            self.e_int = held;
+                        }
                         None
                     }
                 };
@@ -476,7 +500,8 @@ impl EmtUnit {
                 let v_m = b.unwrap_or_else(|| {
                     // The capacitor-voltage reference behind the virtual resistance.
                     let v_ref = Dq { d: self.e, q: 0.0 } - fm.i_g * p.vi_r;
-                    self.inner.step(&fm, v_ref, omega, v_m_max, h)
+                    let e = Dq { d: self.e, q: 0.0 };
+                    self.inner.step(&fm, v_ref, e, omega, v_m_max, h)
                 });
                 (v_m, df, false)
             }

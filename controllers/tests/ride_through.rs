@@ -426,3 +426,102 @@ fn measure_baseline() {
         t_end: 2.5,
     });
 }
+
+/// The post-event swing of `r` after `t0`: the damping ratio from the logarithmic decrement of
+/// the first two peaks of the same sign of `p` (10 ms moving average) about its final value,
+/// the swing's frequency (Hz), and the recovery time after `t0` (s): when `|p - p_end|` falls
+/// below 5 % of the unit's rating for good.
+fn swing(r: &[Sample], t0: f64) -> (f64, f64, f64) {
+    let n_avg = (0.01 / H) as usize;
+    let s_rated = unit_params().rating.s_rated / unit_params().rating.s_base;
+    let p_end = mean_of(r, r.last().unwrap().t - 0.2, f64::INFINITY, |x| x.p);
+    let seg: Vec<&Sample> = window(r, t0, f64::INFINITY).collect();
+    let avg: Vec<(f64, f64)> = seg
+        .windows(n_avg)
+        .step_by(10)
+        .map(|w| {
+            (
+                w[n_avg / 2].t,
+                w.iter().map(|x| x.p).sum::<f64>() / n_avg as f64 - p_end,
+            )
+        })
+        .collect();
+    // Extrema: sign changes of the slope.
+    let mut peaks = Vec::new();
+    for k in 1..avg.len() - 1 {
+        let (a, b, c) = (avg[k - 1].1, avg[k].1, avg[k + 1].1);
+        if (b > a && b >= c || b < a && b <= c) && b.abs() > 1e-3 {
+            peaks.push(avg[k]);
+        }
+    }
+    let zeta = peaks
+        .iter()
+        .zip(peaks.iter().skip(2))
+        .find(|(a, b)| a.1 * b.1 > 0.0)
+        .map(|(a, b)| {
+            let dec = dvpp_math::log(a.1 / b.1);
+            (dec / dvpp_math::hypot(2.0 * PI, dec), 1.0 / (b.0 - a.0))
+        })
+        .unwrap_or((1.0, 0.0));
+    let tol = 0.05 * s_rated;
+    let last_out = seg
+        .iter()
+        .rev()
+        .find(|x| (x.p - p_end).abs() > tol)
+        .map_or(t0, |x| x.t);
+    println!("peaks {:?}", &peaks[..peaks.len().min(6)]);
+    (zeta.0, zeta.1, last_out - t0)
+}
+
+#[test]
+fn measure_dip() {
+    for depth in [0.5, 0.2] {
+        let r = run(Setting {
+            scr: 10.0,
+            event: Event::Dip(depth),
+            grounding: 0,
+            t_end: 3.0,
+        });
+        let t1 = T_EVENT + 0.15;
+        let (zeta, f, rec) = swing(&r, t1);
+        println!(
+            "dip {depth}: zeta {zeta:.3} at {f:.2} Hz, recovery {rec:.3} s; during: active {:.3} reactive {:.3} q {:.3}, i_peak {:.3}, limited {}",
+            mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_active),
+            mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_reactive),
+            mean_of(&r, T_EVENT + 0.02, t1, |x| x.q),
+            max_of(&r, T_EVENT, 3.0, |x| x.i_peak),
+            r.iter().filter(|x| x.limited).count()
+        );
+    }
+}
+
+#[test]
+fn measure_faults() {
+    for grounding in [0, 1] {
+        for (kind, rf, xf) in [
+            (1, 0.0, 0.05),
+            (1, 0.1, 0.0001),
+            (2, 0.01, 0.01),
+            (3, 0.01, 0.01),
+            (4, 0.01, 0.01),
+        ] {
+            let r = run(Setting {
+                scr: 10.0,
+                event: Event::Fault { kind, r: rf, x: xf },
+                grounding,
+                t_end: 1.5,
+            });
+            let t1 = T_EVENT + 0.15;
+            println!(
+                "fault {kind} R {rf} X {xf} grounding {grounding}: phase peak {:.3} (during {:.3}), zero seq max {:.3}; during: active {:.3} reactive {:.3} q {:.3}; after: |df| {:.3}",
+                max_of(&r, T_EVENT, 1.5, |x| x.i_peak),
+                max_of(&r, T_EVENT, t1, |x| x.i_peak),
+                max_of(&r, T_EVENT, 1.5, |x| x.i_zero.abs()),
+                mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_active),
+                mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_reactive),
+                mean_of(&r, T_EVENT + 0.02, t1, |x| x.q),
+                max_of(&r, 1.2, 1.5, |x| (x.f_unit - x.f_grid).abs()),
+            );
+        }
+    }
+}

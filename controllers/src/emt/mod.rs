@@ -67,6 +67,10 @@ const FREQUENCY_TAU: f64 = 0.1;
 /// frame's synchronizing power while limited; docs/emt.md, current limit and ride-through).
 const LIMIT_X: f64 = 0.2;
 
+/// Grid-forming, option A: the zero-sequence converter current (pu) from which on the unit
+/// takes its star point as grounded and controls the zero sequence to zero.
+const ZERO_SEQUENCE_SEEN: f64 = 1e-3;
+
 /// One sample of the measurements (pu on `S_rated`, instantaneous), at time `t` (s).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct EmtMeasurement {
@@ -162,6 +166,11 @@ pub struct EmtUnit {
     limited: bool,
     /// The converter voltage the last output asked for (dq, pu), for the converter power.
     v_m: Dq,
+    /// Grid-forming, option A: a zero-sequence current has been seen in the converter (its star
+    /// point is grounded), and the converter's zero-sequence voltage commanded for the next
+    /// step (pu), which drives that current to zero.
+    zero_path: bool,
+    v_m0: f64,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
     /// (dq, pu, its frame), for the voltage the reactive reference model reads.
     i_g_prev: Dq,
@@ -295,6 +304,8 @@ impl EmtUnit {
             i_src,
             k_d: damping_gain(p.dc.tau_dc, data.c_dc, data.g_dc, data.k_dc, p.dc.zeta),
             warned_gains: false,
+            zero_path: false,
+            v_m0: 0.0,
         };
         let mut notices = Vec::new();
         let limit = unit.headroom(m.t);
@@ -361,7 +372,12 @@ impl EmtUnit {
     fn modulation(&self, v_dc: f64, rho: f64) -> [f64; 3] {
         let scale = 0.5 * self.params.vdc_ratio * v_dc.max(V_DC_FLOOR);
         let v = self.v_m.to_abc(rho);
-        [v.a, v.b, v.c].map(|x| (x / scale).clamp(-1.0, 1.0))
+        if self.zero_path {
+            let v0 = self.v_m0;
+            [v.a + v0, v.b + v0, v.c + v0].map(|x| (x / scale).clamp(-1.0, 1.0))
+        } else {
+            [v.a, v.b, v.c].map(|x| (x / scale).clamp(-1.0, 1.0))
+        }
     }
 
     /// One sample: the measurements at `m.t` and the operator's gains; the command for the
@@ -571,6 +587,21 @@ impl EmtUnit {
         self.i_src = (i_cmd + (i0 - i_cmd) * dvpp_math::exp(-h / p.dc.tau_dc)).clamp(lo, hi);
         let source = (self.i_src >= hi && i_cmd > hi) || (self.i_src <= lo && i_cmd < lo);
 
+        // Zero sequence (grid-forming, option A): the dq loops see none. A three-wire converter
+        // carries none; once a zero-sequence current shows (a grounded star: the converter's dc
+        // midpoint, the filter capacitors' star and the transformer's), the converter's
+        // zero-sequence voltage follows the capacitors' and drives the current to zero at the
+        // current loop's gain, so that it adds nothing to the phase currents.
+        if self.hinf.is_none() && matches!(self.pf, PfReference::Forming(_)) {
+            let i_0 = (m.i_f.a + m.i_f.b + m.i_f.c) / 3.0;
+            if i_0.abs() > ZERO_SEQUENCE_SEEN {
+                self.zero_path = true;
+            }
+            if self.zero_path {
+                let v_c0 = (m.v_c.a + m.v_c.b + m.v_c.c) / 3.0;
+                self.v_m0 = v_c0 - self.inner.gains().kp_i * i_0;
+            }
+        }
         self.v_m = v_m;
         self.df = df_next;
         let rho_out = rho + 1.5 * h * omega_b * (1.0 + df_next);

@@ -392,47 +392,12 @@ fn sync(s: Setting) -> Sync {
     out
 }
 
-#[test]
-fn measure_baseline() {
-    for event in [
-        Event::Ramp {
-            rocof: -5.0,
-            duration: 0.2,
-        },
-        Event::Ramp {
-            rocof: 5.0,
-            duration: 0.2,
-        },
-        Event::Ramp {
-            rocof: -5.0,
-            duration: 0.1,
-        },
-        Event::Ramp {
-            rocof: 5.0,
-            duration: 0.1,
-        },
-    ] {
-        sync(Setting {
-            scr: 10.0,
-            event,
-            grounding: 0,
-            t_end: 2.5,
-        });
-    }
-    sync(Setting {
-        scr: 3.0,
-        event: Event::Jump(25f64.to_radians()),
-        grounding: 0,
-        t_end: 2.5,
-    });
-}
-
 /// The post-event swing of `r` after `t0`: the damping ratio from the logarithmic decrement of
 /// the first two peaks of the same sign of `p` (10 ms moving average) about its final value,
 /// the swing's frequency (Hz), and the recovery time after `t0` (s): when `|p - p_end|` falls
 /// below 5 % of the unit's rating for good.
 fn swing(r: &[Sample], t0: f64) -> (f64, f64, f64) {
-    let n_avg = (0.01 / H) as usize;
+    let n_avg = (0.02 / H) as usize;
     let s_rated = unit_params().rating.s_rated / unit_params().rating.s_base;
     let p_end = mean_of(r, r.last().unwrap().t - 0.2, f64::INFINITY, |x| x.p);
     let seg: Vec<&Sample> = window(r, t0, f64::INFINITY).collect();
@@ -450,78 +415,209 @@ fn swing(r: &[Sample], t0: f64) -> (f64, f64, f64) {
     let mut peaks = Vec::new();
     for k in 1..avg.len() - 1 {
         let (a, b, c) = (avg[k - 1].1, avg[k].1, avg[k + 1].1);
-        if (b > a && b >= c || b < a && b <= c) && b.abs() > 1e-3 {
+        let spaced = peaks
+            .last()
+            .is_none_or(|x: &(f64, f64)| avg[k].0 - x.0 > 0.05);
+        if (b > a && b >= c || b < a && b <= c) && b.abs() > 1e-3 && spaced {
             peaks.push(avg[k]);
         }
     }
-    let zeta = peaks
+    // From the second peak on (the first is the event's own), half a period each.
+    let half: Vec<(f64, f64)> = peaks
         .iter()
+        .skip(1)
         .zip(peaks.iter().skip(2))
-        .find(|(a, b)| a.1 * b.1 > 0.0)
+        .take(4)
+        .filter(|(a, b)| a.1 * b.1 < 0.0)
         .map(|(a, b)| {
-            let dec = dvpp_math::log(a.1 / b.1);
-            (dec / dvpp_math::hypot(2.0 * PI, dec), 1.0 / (b.0 - a.0))
+            (
+                2.0 * dvpp_math::log(a.1.abs() / b.1.abs()),
+                2.0 * (b.0 - a.0),
+            )
         })
-        .unwrap_or((1.0, 0.0));
+        .collect();
+    let zeta = if half.is_empty() {
+        (1.0, 0.0)
+    } else {
+        let n = half.len() as f64;
+        let dec = half.iter().map(|x| x.0).sum::<f64>() / n;
+        let period = half.iter().map(|x| x.1).sum::<f64>() / n;
+        (dec / dvpp_math::hypot(2.0 * PI, dec), 1.0 / period)
+    };
     let tol = 0.05 * s_rated;
     let last_out = seg
         .iter()
         .rev()
         .find(|x| (x.p - p_end).abs() > tol)
         .map_or(t0, |x| x.t);
-    println!("peaks {:?}", &peaks[..peaks.len().min(6)]);
     (zeta.0, zeta.1, last_out - t0)
 }
 
+/// The ramps: 5 Hz/s for 0.2 s (to ∓1 Hz: the reference model's power at 1 Hz, 1.37 pu of the
+/// rating, stays beyond the limit) and for 0.1 s (to ∓0.5 Hz, within it), down and up.
+const RAMPS: [(f64, f64); 4] = [(-5.0, 0.2), (5.0, 0.2), (-5.0, 0.1), (5.0, 0.1)];
+
+/// Synchronism at 5 Hz/s while current-limited: the frame's frequency follows the grid's (within
+/// 0.6 Hz over the ramp, 0.05 Hz over the last 0.5 s), the PCC voltage's angle in the frame
+/// moves by less than 1 rad, and where the reference model's power is within the limit the
+/// power returns to it (within 0.08 pu on S_base, 0.13 of the rating, over the last 0.5 s).
+/// Before the frame's synchronizing term the frame ran to +1.46 Hz while the grid fell to -0.5
+/// Hz (-1 Hz alike).
 #[test]
-fn measure_dip() {
-    for depth in [0.5, 0.2] {
-        let r = run(Setting {
+fn synchronism_is_kept_through_5_hz_per_s_ramps() {
+    for (rocof, duration) in RAMPS {
+        let s = sync(Setting {
             scr: 10.0,
-            event: Event::Dip(depth),
+            event: Event::Ramp { rocof, duration },
             grounding: 0,
-            t_end: 3.0,
+            t_end: 2.5,
         });
-        let t1 = T_EVENT + 0.15;
-        let (zeta, f, rec) = swing(&r, t1);
-        println!(
-            "dip {depth}: zeta {zeta:.3} at {f:.2} Hz, recovery {rec:.3} s; during: active {:.3} reactive {:.3} q {:.3}, i_peak {:.3}, limited {}",
-            mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_active),
-            mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_reactive),
-            mean_of(&r, T_EVENT + 0.02, t1, |x| x.q),
-            max_of(&r, T_EVENT, 3.0, |x| x.i_peak),
-            r.iter().filter(|x| x.limited).count()
-        );
+        let what = format!("{rocof} Hz/s for {duration} s: {s:?}");
+        assert!(s.df_max < 0.6, "{what}");
+        assert!(s.df_end < 0.05, "{what}");
+        assert!(s.delta_range < 1.0, "{what}");
+        // The frame's frequency moves the grid's way and no further than 0.6 Hz beyond it.
+        let f_end = rocof * duration;
+        let f_grid = if rocof < 0.0 { s.f_grid.0 } else { s.f_grid.1 };
+        assert!((f_grid - f_end).abs() < 1e-9, "{what}");
+        if rocof < 0.0 {
+            assert!(s.f_unit.0 > f_end - 0.6 && s.f_unit.1 < 0.01, "{what}");
+        } else {
+            assert!(s.f_unit.1 < f_end + 0.6 && s.f_unit.0 > -0.01, "{what}");
+        }
+        if duration < 0.15 {
+            assert!(s.dp_end < 0.08, "{what}");
+        }
+    }
+    // The limit acts in the ramp down to -1 Hz (the case that lost synchronism).
+    let s = sync(Setting {
+        scr: 10.0,
+        event: Event::Ramp {
+            rocof: -5.0,
+            duration: 0.2,
+        },
+        grounding: 0,
+        t_end: 1.0,
+    });
+    assert!(s.limited > 1000, "{s:?}");
+}
+
+/// A 25° phase jump at SCR 3 (either sign): the frame follows (the angle difference settles,
+/// the frequencies meet).
+#[test]
+fn synchronism_is_kept_through_a_25_degree_jump_at_scr_3() {
+    for sign in [1.0, -1.0] {
+        let s = sync(Setting {
+            scr: 3.0,
+            event: Event::Jump(sign * 25f64.to_radians()),
+            grounding: 0,
+            t_end: 2.0,
+        });
+        assert!(s.df_max < 0.6, "{s:?}");
+        assert!(s.df_end < 0.05, "{s:?}");
+        assert!(s.delta_range < 0.6, "{s:?}");
     }
 }
 
+/// How far a phase current may exceed I_max (fraction): the reference is limited in the dq
+/// frame, which bounds every phase of the reference (a phase is a projection of the αβ vector);
+/// the current loop's tracking error over the faults' edges is what passes (measured 1.033).
+const I_TOLERANCE: f64 = 0.05;
+
+/// Every phase of the converter current within `I_max (1 + I_TOLERANCE)` through three-phase
+/// (bolted and resistive), single line to ground, line to line and line to line to ground
+/// faults at the PCC, for a three-wire converter and a grounded star; with the star grounded,
+/// the zero-sequence current is controlled to below 0.1 pu (before: 1.40 pu in a SLG fault,
+/// phase peaks 2.37 pu, and 2.64 pu in a LLG fault).
 #[test]
-fn measure_faults() {
+fn phase_currents_stay_within_i_max_in_every_fault() {
+    let i_max = unit_params().inner.i_max;
     for grounding in [0, 1] {
-        for (kind, rf, xf) in [
+        for (kind, r, x) in [
             (1, 0.0, 0.05),
-            (1, 0.1, 0.0001),
+            (1, 0.1, 1e-4),
             (2, 0.01, 0.01),
             (3, 0.01, 0.01),
             (4, 0.01, 0.01),
         ] {
-            let r = run(Setting {
+            let run = run(Setting {
                 scr: 10.0,
-                event: Event::Fault { kind, r: rf, x: xf },
+                event: Event::Fault { kind, r, x },
                 grounding,
-                t_end: 1.5,
+                t_end: 1.0,
             });
-            let t1 = T_EVENT + 0.15;
+            let peak = max_of(&run, 0.0, 1.0, |x| x.i_peak);
+            let zero = max_of(&run, 0.0, 1.0, |x| x.i_zero.abs());
+            let after = max_of(&run, 0.9, 1.0, |x| (x.f_unit - x.f_grid).abs());
             println!(
-                "fault {kind} R {rf} X {xf} grounding {grounding}: phase peak {:.3} (during {:.3}), zero seq max {:.3}; during: active {:.3} reactive {:.3} q {:.3}; after: |df| {:.3}",
-                max_of(&r, T_EVENT, 1.5, |x| x.i_peak),
-                max_of(&r, T_EVENT, t1, |x| x.i_peak),
-                max_of(&r, T_EVENT, 1.5, |x| x.i_zero.abs()),
-                mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_active),
-                mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_reactive),
-                mean_of(&r, T_EVENT + 0.02, t1, |x| x.q),
-                max_of(&r, 1.2, 1.5, |x| (x.f_unit - x.f_grid).abs()),
+                "fault {kind} (R {r}, X {x}), grounding {grounding}: phase peak {peak:.3} pu = {:.3} I_max, zero sequence up to {zero:.3} pu; |f_unit - f_grid| {after:.3} Hz 0.25 s after",
+                peak / i_max
+            );
+            assert!(
+                peak <= i_max * (1.0 + I_TOLERANCE),
+                "fault {kind}, grounding {grounding}: phase peak {peak}"
+            );
+            assert!(
+                zero < 0.1,
+                "fault {kind}, grounding {grounding}: zero sequence {zero}"
+            );
+            assert!(
+                after < 0.5,
+                "fault {kind}, grounding {grounding}: {after} Hz"
             );
         }
     }
+}
+
+/// A 150 ms dip of the source to 0.5 pu at SCR 10: the unit injects reactive current
+/// (positive: lagging the MV voltage) while limited, at least 0.2 pu of the rated current
+/// (measured 0.28; 0.40 before the frame's synchronizing term, which holds the frame's angle).
+#[test]
+fn reactive_current_is_injected_in_a_dip() {
+    let r = run(Setting {
+        scr: 10.0,
+        event: Event::Dip(0.5),
+        grounding: 0,
+        t_end: 0.7,
+    });
+    let t1 = T_EVENT + 0.15;
+    let reactive = mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_reactive);
+    let active = mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_active);
+    println!("0.5 pu dip: active {active:.3}, reactive {reactive:.3} pu");
+    assert!(reactive > 0.2, "reactive {reactive}, active {active}");
+    assert!(window(&r, T_EVENT, t1).filter(|x| x.limited).count() > 100);
+}
+
+/// The targets not met yet (docs/emt.md §9, current limit and ride-through): the post-fault
+/// swing's damping ratio at least 0.3 and recovery within 1 s after a 0.5 pu dip at SCR 10
+/// (measured ζ 0.11 at 1.77 Hz, 2.5 s; before: 0.094 at 1.70 Hz, 1.9 s), and reactive current
+/// injected in a resistive three-phase fault (measured -1.03 pu: absorbed; before -1.10).
+#[test]
+#[ignore = "open: the 1.7 Hz frame-E mode is not damped and the limited current keeps the voltage loop's direction"]
+fn targets_not_met_yet() {
+    let r = run(Setting {
+        scr: 10.0,
+        event: Event::Dip(0.5),
+        grounding: 0,
+        t_end: 4.0,
+    });
+    let (zeta, f, recovery) = swing(&r, T_EVENT + 0.15);
+    println!("0.5 pu dip: zeta {zeta:.3} at {f:.2} Hz, recovery {recovery:.3} s");
+    let resistive = run(Setting {
+        scr: 10.0,
+        event: Event::Fault {
+            kind: 1,
+            r: 0.1,
+            x: 1e-4,
+        },
+        grounding: 0,
+        t_end: 0.7,
+    });
+    let reactive = mean_of(&resistive, T_EVENT + 0.02, T_EVENT + 0.15, |x| x.i_reactive);
+    println!("resistive three-phase fault: reactive {reactive:.3} pu");
+    assert!(
+        zeta >= 0.3 && recovery <= 1.0,
+        "zeta {zeta}, recovery {recovery}"
+    );
+    assert!(reactive > 0.0, "reactive {reactive}");
 }

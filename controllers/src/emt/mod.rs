@@ -65,7 +65,7 @@ const FREQUENCY_TAU: f64 = 0.1;
 /// Grid-forming, option A: the virtual reactance (pu on `S_rated`) through which the voltage
 /// error a limited current reference leaves is read as power by the reference model (the
 /// frame's synchronizing power while limited; docs/emt.md, current limit and ride-through).
-const LIMIT_X: f64 = 0.2;
+const LIMIT_X: f64 = 0.4;
 
 /// Grid-forming, option A: the zero-sequence converter current (pu) from which on the unit
 /// takes its star point as grounded and controls the zero sequence to zero.

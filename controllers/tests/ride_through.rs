@@ -588,21 +588,29 @@ fn reactive_current_is_injected_in_a_dip() {
     assert!(window(&r, T_EVENT, t1).filter(|x| x.limited).count() > 100);
 }
 
-/// The targets not met yet (docs/emt.md §9, current limit and ride-through): the post-fault
-/// swing's damping ratio at least 0.3 and recovery within 1 s after a 0.5 pu dip at SCR 10
-/// (measured ζ 0.11 at 1.77 Hz, 2.5 s; before: 0.094 at 1.70 Hz, 1.9 s), and reactive current
-/// injected in a resistive three-phase fault (measured -1.03 pu: absorbed; before -1.10).
+/// A 150 ms dip of the source to 0.5 pu at SCR 10: the swing after it (the frame against the
+/// grid, with the q PI's E) has a damping ratio of at least 0.3 and the power is back within
+/// 5 % of the rating within 1 s of the dip's end (measured ζ 0.41 at 1.4 Hz, 0.49 s; before the
+/// frame damping ζ 0.094 at 1.70 Hz, 1.9 s).
 #[test]
-#[ignore = "open: the 1.7 Hz frame-E mode is not damped and the limited current keeps the voltage loop's direction"]
-fn targets_not_met_yet() {
+fn the_swing_after_a_dip_is_damped() {
     let r = run(Setting {
         scr: 10.0,
         event: Event::Dip(0.5),
         grounding: 0,
-        t_end: 4.0,
+        t_end: 3.0,
     });
     let (zeta, f, recovery) = swing(&r, T_EVENT + 0.15);
     println!("0.5 pu dip: zeta {zeta:.3} at {f:.2} Hz, recovery {recovery:.3} s");
+    assert!(zeta >= 0.3, "zeta {zeta} at {f} Hz");
+    assert!(recovery <= 1.0, "recovery {recovery} s");
+}
+
+/// Not met yet (docs/emt.md §9, current limit and ride-through): reactive current injected in a
+/// resistive three-phase fault (measured -0.99 pu: absorbed; before -1.10).
+#[test]
+#[ignore = "open: the limited current keeps the voltage loop's direction"]
+fn reactive_current_in_a_resistive_fault() {
     let resistive = run(Setting {
         scr: 10.0,
         event: Event::Fault {
@@ -615,9 +623,5 @@ fn targets_not_met_yet() {
     });
     let reactive = mean_of(&resistive, T_EVENT + 0.02, T_EVENT + 0.15, |x| x.i_reactive);
     println!("resistive three-phase fault: reactive {reactive:.3} pu");
-    assert!(
-        zeta >= 0.3 && recovery <= 1.0,
-        "zeta {zeta}, recovery {recovery}"
-    );
     assert!(reactive > 0.0, "reactive {reactive}");
 }

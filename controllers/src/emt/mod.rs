@@ -67,6 +67,21 @@ const FREQUENCY_TAU: f64 = 0.1;
 /// frame's synchronizing power while limited; docs/emt.md, current limit and ride-through).
 const LIMIT_X: f64 = 0.4;
 
+/// Grid-forming, option A: the frame's damping against the grid, `D_slip` in units of
+/// `Tdes.D` (the reference model's own damping): the frame's swing against the grid after a
+/// fault at SCR 10 has ζ ≈ 0.1 without it, 0.4 with (docs/emt.md, current limit and
+/// ride-through).
+const SLIP_DAMPING: f64 = 1.8;
+
+/// The time constant (s) through which the frame damping reads the frame's speed against the
+/// MV voltage (the angle's derivative carries the 100 Hz ripple of unbalanced operation and the
+/// steps of faults).
+const SLIP_TAU: f64 = 0.02;
+
+/// The frame damping's largest power (pu of the unit's rating): a phase jump or a fault's
+/// voltage collapse turns the measured angle by up to π within a sample.
+const SLIP_MAX: f64 = 0.5;
+
 /// Grid-forming, option A: the zero-sequence converter current (pu) from which on the unit
 /// takes its star point as grounded and controls the zero sequence to zero.
 const ZERO_SEQUENCE_SEEN: f64 = 1e-3;
@@ -171,6 +186,10 @@ pub struct EmtUnit {
     /// step (pu), which drives that current to zero.
     zero_path: bool,
     v_m0: f64,
+    /// Grid-forming, option A: the MV voltage of the last sample (dq, the frame), and the
+    /// frame's speed against it through `SLIP_TAU` (pu), which the frame damping reads.
+    vg_last: Dq,
+    slip: f64,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
     /// (dq, pu, its frame), for the voltage the reactive reference model reads.
     i_g_prev: Dq,
@@ -306,6 +325,8 @@ impl EmtUnit {
             warned_gains: false,
             zero_path: false,
             v_m0: 0.0,
+            vg_last: vg,
+            slip: 0.0,
         };
         let mut notices = Vec::new();
         let limit = unit.headroom(m.t);
@@ -461,8 +482,29 @@ impl EmtUnit {
                 } else {
                     pw
                 };
-                let (df, dtheta) =
-                    layer::forming_angle(pf, (p_model - p_set) * to_dvpp, h, p.rating.f_nom);
+                // Option A: the frame's damping against the grid. The frame's speed against the
+                // MV voltage (the slip: the angle the voltage turns back in the frame per
+                // sample), through `SLIP_TAU`, read by the reference model as the power
+                // `D_slip · slip` (`D_slip` = `SLIP_DAMPING · Tdes.D`, on S_dvpp, at most
+                // `SLIP_MAX` of the rating): it damps the frame's swing against the grid (with
+                // the q PI's E, 1.7 Hz, ζ 0.1 without it) and is zero whenever the frame runs at
+                // the grid's speed, so that the response to T_des is the reference model's.
+                let damping = if self.hinf.is_none() {
+                    let last = self.vg_last;
+                    let turn = dvpp_math::atan2(last.d * vg.q - last.q * vg.d, last.p(vg));
+                    self.vg_last = vg;
+                    self.slip += (-turn / (omega_b * h) - self.slip) * (h / SLIP_TAU);
+                    let max = SLIP_MAX / to_dvpp * to_base;
+                    (SLIP_DAMPING * p.tdes.d * self.slip).clamp(-max, max)
+                } else {
+                    0.0
+                };
+                let (df, dtheta) = layer::forming_angle(
+                    pf,
+                    (p_model - p_set) * to_dvpp + damping,
+                    h,
+                    p.rating.f_nom,
+                );
                 // Option B: the state feedback on the reactive error of this sample; option A:
                 // the q PI sets E.
                 let b = match self.hinf.as_mut() {

@@ -67,16 +67,21 @@ const FREQUENCY_TAU: f64 = 0.1;
 /// frame's synchronizing power while limited; docs/emt.md, current limit and ride-through).
 const LIMIT_X: f64 = 0.4;
 
-/// Grid-forming, option A: the frame's damping against the grid, `D_slip` in units of
-/// `Tdes.D` (the reference model's own damping): the frame's swing against the grid after a
-/// fault at SCR 10 has ζ ≈ 0.1 without it, 0.4 with (docs/emt.md, current limit and
-/// ride-through).
+/// Grid-forming, option A: the frame's damping against the grid while limited and in the
+/// recovery after, `D_slip` in units of `Tdes.D` (the reference model's own damping): the
+/// frame's swing against the grid after a fault at SCR 10 has ζ ≈ 0.1 without it, 0.4 with
+/// (docs/emt.md, current limit and ride-through).
 const SLIP_DAMPING: f64 = 1.8;
 
 /// The time constant (s) through which the frame damping reads the frame's speed against the
 /// MV voltage (the angle's derivative carries the 100 Hz ripple of unbalanced operation and the
 /// steps of faults).
 const SLIP_TAU: f64 = 0.02;
+
+/// How long (s) the frame damping acts after the current was last limited, and the last part
+/// of it over which it fades out.
+const SLIP_RECOVERY: f64 = 2.0;
+const SLIP_FADE: f64 = 1.0;
 
 /// The frame damping's largest power (pu of the unit's rating): a phase jump or a fault's
 /// voltage collapse turns the measured angle by up to π within a sample.
@@ -190,6 +195,9 @@ pub struct EmtUnit {
     /// frame's speed against it through `SLIP_TAU` (pu), which the frame damping reads.
     vg_last: Dq,
     slip: f64,
+    /// Grid-forming, option A: how long (s) the frame damping still acts, set to
+    /// `SLIP_RECOVERY` whenever the current is limited.
+    recovery: f64,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
     /// (dq, pu, its frame), for the voltage the reactive reference model reads.
     i_g_prev: Dq,
@@ -327,6 +335,7 @@ impl EmtUnit {
             v_m0: 0.0,
             vg_last: vg,
             slip: 0.0,
+            recovery: 0.0,
         };
         let mut notices = Vec::new();
         let limit = unit.headroom(m.t);
@@ -482,29 +491,34 @@ impl EmtUnit {
                 } else {
                     pw
                 };
-                // Option A: the frame's damping against the grid. The frame's speed against the
-                // MV voltage (the slip: the angle the voltage turns back in the frame per
-                // sample), through `SLIP_TAU`, read by the reference model as the power
-                // `D_slip · slip` (`D_slip` = `SLIP_DAMPING · Tdes.D`, on S_dvpp, at most
-                // `SLIP_MAX` of the rating): it damps the frame's swing against the grid (with
-                // the q PI's E, 1.7 Hz, ζ 0.1 without it) and is zero whenever the frame runs at
-                // the grid's speed, so that the response to T_des is the reference model's.
+                // Option A: the frame's damping against the grid, while the current is limited
+                // and over the recovery after (`SLIP_RECOVERY`, fading out over its last
+                // `SLIP_FADE`). The frame's speed against the MV voltage (the slip: the angle
+                // the voltage turns back in the frame per sample), through `SLIP_TAU`, read by
+                // the reference model as the power `D_slip · slip` (`D_slip` = `SLIP_DAMPING ·
+                // Tdes.D`, on S_dvpp, at most `SLIP_MAX` of the rating): it damps the frame's
+                // swing against the grid after a fault (with the q PI's E, 1.7 Hz, ζ 0.1
+                // without it). Unlimited operation is untouched (the slip is tracked, unread).
                 let damping = if self.hinf.is_none() {
                     let last = self.vg_last;
                     let turn = dvpp_math::atan2(last.d * vg.q - last.q * vg.d, last.p(vg));
                     self.vg_last = vg;
                     self.slip += (-turn / (omega_b * h) - self.slip) * (h / SLIP_TAU);
+                    if limited {
+                        self.recovery = SLIP_RECOVERY;
+                    } else {
+                        self.recovery = (self.recovery - h).max(0.0);
+                    }
                     let max = SLIP_MAX / to_dvpp * to_base;
-                    (SLIP_DAMPING * p.tdes.d * self.slip).clamp(-max, max)
+                    let fade = (self.recovery / SLIP_FADE).min(1.0);
+                    (self.recovery > 0.0)
+                        .then(|| (fade * SLIP_DAMPING * p.tdes.d * self.slip).clamp(-max, max))
                 } else {
-                    0.0
+                    None
                 };
-                let (df, dtheta) = layer::forming_angle(
-                    pf,
-                    (p_model - p_set) * to_dvpp + damping,
-                    h,
-                    p.rating.f_nom,
-                );
+                let dp = (p_model - p_set) * to_dvpp;
+                let dp = damping.map_or(dp, |d| dp + d);
+                let (df, dtheta) = layer::forming_angle(pf, dp, h, p.rating.f_nom);
                 // Option B: the state feedback on the reactive error of this sample; option A:
                 // the q PI sets E.
                 let b = match self.hinf.as_mut() {

@@ -146,6 +146,9 @@ struct Sample {
     /// Largest converter phase current (pu of the rated peak) and its zero sequence.
     i_peak: f64,
     i_zero: f64,
+    /// The converter current's negative sequence in a frame turning backward at `f_nom` (its
+    /// mean over whole cycles is the negative-sequence phasor).
+    i_neg: Dq,
     /// Converter current in the MV voltage's frame: active (along it) and reactive (lagging
     /// it by 90°: injected reactive power) components, pu of the rated peak.
     i_active: f64,
@@ -289,6 +292,13 @@ fn run(s: Setting) -> Vec<Sample> {
             v: cmd.v,
             i_peak: m.i_f.peak(),
             i_zero: (m.i_f.a + m.i_f.b + m.i_f.c) / 3.0,
+            // The a-c-b sequence in the forward frame is the a-b-c negative sequence.
+            i_neg: Abc {
+                a: m.i_f.a,
+                b: m.i_f.c,
+                c: m.i_f.b,
+            }
+            .to_dq((omega_b * t).rem_euclid(2.0 * PI)),
             i_active,
             i_reactive,
             limited: cmd.limit_current,
@@ -558,8 +568,16 @@ fn phase_currents_stay_within_i_max_in_every_fault() {
             let peak = max_of(&run, 0.0, 1.0, |x| x.i_peak);
             let zero = max_of(&run, 0.0, 1.0, |x| x.i_zero.abs());
             let after = max_of(&run, 0.9, 1.0, |x| (x.f_unit - x.f_grid).abs());
+            // Negative sequence over the fault's last 100 ms (5 cycles).
+            let (t0, t1) = (T_EVENT + 0.05, T_EVENT + 0.15);
+            let neg = Dq {
+                d: mean_of(&run, t0, t1, |x| x.i_neg.d),
+                q: mean_of(&run, t0, t1, |x| x.i_neg.q),
+            }
+            .norm();
+            let pos = mean_of(&run, t0, t1, |x| dvpp_math::hypot(x.i_active, x.i_reactive));
             println!(
-                "fault {kind} (R {r}, X {x}), grounding {grounding}: phase peak {peak:.3} pu = {:.3} I_max, zero sequence up to {zero:.3} pu; |f_unit - f_grid| {after:.3} Hz 0.25 s after",
+                "fault {kind} (R {r}, X {x}), grounding {grounding}: phase peak {peak:.3} pu = {:.3} I_max, zero sequence up to {zero:.3} pu, negative sequence {neg:.3} pu (mean |i_dq| {pos:.3}); |f_unit - f_grid| {after:.3} Hz 0.25 s after",
                 peak / i_max
             );
             assert!(

@@ -78,6 +78,17 @@ const SLIP_DAMPING: f64 = 1.8;
 /// steps of faults).
 const SLIP_TAU: f64 = 0.02;
 
+/// Grid-forming, option A: the threshold virtual impedance on the voltage reference (after
+/// Qoria et al.'s threshold virtual impedance): it acts beyond `TVI_THRESHOLD · I_max` of the
+/// converter current's magnitude (through `TVI_TAU`), `TVI_GAIN` pu of resistance per pu of
+/// current beyond it, `X/R` = `TVI_X_R`: in a dip the current turns reactive (0.24 -> 0.95 pu
+/// reactive in a 0.5 pu dip at SCR 10) and stays below `I_max`, where the limit on the reference
+/// remains the bound.
+const TVI_THRESHOLD: f64 = 1.1 / 1.2;
+const TVI_GAIN: f64 = 1.0;
+const TVI_X_R: f64 = 5.0;
+const TVI_TAU: f64 = 2e-3;
+
 /// How long (s) the frame damping acts after the current was last limited, and the last part
 /// of it over which it fades out.
 const SLIP_RECOVERY: f64 = 2.0;
@@ -198,6 +209,11 @@ pub struct EmtUnit {
     /// Grid-forming, option A: how long (s) the frame damping still acts, set to
     /// `SLIP_RECOVERY` whenever the current is limited.
     recovery: f64,
+    /// Grid-forming, option A: the converter current's magnitude through `TVI_TAU` (pu), which
+    /// the threshold virtual impedance reads.
+    i_filt: f64,
+    /// Grid-forming, option A: the virtual impedance acted in the last sample.
+    tvi_active: bool,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
     /// (dq, pu, its frame), for the voltage the reactive reference model reads.
     i_g_prev: Dq,
@@ -336,6 +352,8 @@ impl EmtUnit {
             vg_last: vg,
             slip: 0.0,
             recovery: 0.0,
+            i_filt: fm.i_f.norm(),
+            tvi_active: false,
         };
         let mut notices = Vec::new();
         let limit = unit.headroom(m.t);
@@ -478,15 +496,34 @@ impl EmtUnit {
         let (v_m, df_next, reference_limited) = match &mut self.pf {
             PfReference::Forming(pf) => {
                 layer::set_p_gains(pf, p.adpf_p.kind, gains.mu_p, &lpf[..n_lpf])?;
-                // Option A while the last sample's current reference was limited: the
-                // reference model reads the delivered power plus the power a virtual reactance
-                // `LIMIT_X` would carry on the voltage `E - v_c` (weighted in as the limit cuts
-                // deeper; the frame's angle ahead of the grid's shows as `ev_q > 0`), so that
-                // the frame keeps synchronized with the grid while the current, hence the
-                // power, is held.
-                let limited = self.hinf.is_none() && self.inner.current_limited();
+                // Option A: the threshold virtual impedance `k (|i_f| - I_th) (1 + j X/R)`
+                // (`TVI_*`) beyond `I_th`, on the voltage reference: the current a fault drives
+                // turns reactive and stays below `I_max` (the limit on the reference remains
+                // the bound), and its weight `w_tvi` (0 at `I_th`, 1 at `I_th + 0.05`).
+                self.i_filt += (fm.i_f.norm() - self.i_filt) * (h / TVI_TAU);
+                let i_th = TVI_THRESHOLD * p.inner.i_max;
+                let over = if self.hinf.is_none() {
+                    (self.i_filt - i_th).max(0.0)
+                } else {
+                    0.0
+                };
+                let w_tvi = (over / 0.05).min(1.0);
+                self.tvi_active = over > 0.0;
+                // Option A while the last sample's current reference was limited, or the
+                // virtual impedance acts: the reference model reads the delivered power plus
+                // the power a virtual reactance `LIMIT_X` would carry on the voltage `E - v_c`
+                // (weighted in as the limit cuts deeper or the impedance grows; the frame's
+                // angle ahead of the grid's shows as `ev_q > 0`), so that the frame keeps
+                // synchronized with the grid while the current, hence the power, is held.
+                let limited = self.hinf.is_none() && (self.inner.current_limited() || w_tvi > 0.0);
                 let p_model = if limited {
-                    let ev = self.inner.limit_error();
+                    let ev_limit = self.inner.limit_error();
+                    let ev_tvi = (Dq { d: self.e, q: 0.0 } - fm.v_c) * w_tvi;
+                    let ev = if ev_tvi.norm() > ev_limit.norm() {
+                        ev_tvi
+                    } else {
+                        ev_limit
+                    };
                     pw + self.e * ev.q / LIMIT_X * to_base
                 } else {
                     pw
@@ -571,7 +608,11 @@ impl EmtUnit {
                 self.theta += dtheta;
                 let v_m = b.unwrap_or_else(|| {
                     // The capacitor-voltage reference behind the virtual resistance.
-                    let v_ref = Dq { d: self.e, q: 0.0 } - fm.i_g * p.vi_r;
+                    let mut v_ref = Dq { d: self.e, q: 0.0 } - fm.i_g * p.vi_r;
+                    if over > 0.0 {
+                        let k = TVI_GAIN * over;
+                        v_ref = v_ref - (fm.i_g + fm.i_g.rot90() * TVI_X_R) * k;
+                    }
                     let e = Dq { d: self.e, q: 0.0 };
                     self.inner.step(&fm, v_ref, e, omega, v_m_max, h)
                 });
@@ -683,7 +724,7 @@ impl EmtUnit {
             limit_current: match self.hinf {
                 // Option B does not limit its current: the flag says it is beyond I_max.
                 Some(_) => i_ac > p.inner.i_max,
-                None => reference_limited || self.inner.current_limited(),
+                None => reference_limited || self.inner.current_limited() || self.tvi_active,
             },
             limit_modulation: self.hinf.as_ref().map_or(
                 self.inner.modulation_limited(),

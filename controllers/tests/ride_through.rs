@@ -607,8 +607,9 @@ fn phase_currents_stay_within_i_max_in_every_fault() {
 }
 
 /// A 150 ms dip of the source to 0.5 pu at SCR 10: the unit injects reactive current
-/// (positive: lagging the MV voltage) while limited, at least 0.2 pu of the rated current
-/// (measured 0.28; 0.40 before the frame's synchronizing term, which holds the frame's angle).
+/// (positive: lagging the MV voltage) while limited, at least half the rated current and more
+/// than its active current (measured 0.95 reactive, 0.73 active; before the threshold virtual
+/// impedance 0.40 and 1.13 — a grid code's `K` = 2 asks about 1 pu for this dip).
 #[test]
 fn reactive_current_is_injected_in_a_dip() {
     let r = run(Setting {
@@ -621,7 +622,10 @@ fn reactive_current_is_injected_in_a_dip() {
     let reactive = mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_reactive);
     let active = mean_of(&r, T_EVENT + 0.02, t1, |x| x.i_active);
     println!("0.5 pu dip: active {active:.3}, reactive {reactive:.3} pu");
-    assert!(reactive > 0.2, "reactive {reactive}, active {active}");
+    assert!(
+        reactive > 0.5 && reactive > active,
+        "reactive {reactive}, active {active}"
+    );
     assert!(window(&r, T_EVENT, t1).filter(|x| x.limited).count() > 100);
 }
 

@@ -4,7 +4,14 @@
 //! static ADPFs carrying the whole DVPP's T_des, μ_p = μ_q = 1, `vq.tau` = 0.5 s), grid-forming
 //! with option A's inner loops, as storage (the source's range ±P_avail, so that the ramps
 //! up and down are alike). It feeds 0.3 pu on S_base (0.5 pu of its rating) into a Thevenin
-//! source (X/R = 10) through its filter and transformer, no load.
+//! source (X/R = 10) through its filter and transformer, no load. `P_avail` = 0.9 pu on S_base
+//! (1.5 of the rating), so that the current limit, not the source, binds.
+//!
+//! `cargo test --release` runs every case (6 s); a debug build a lean set (one of each kind).
+//! `RIDE_THROUGH_TRACE=FILE` appends each run's trace to FILE (every 40th step, or
+//! `RIDE_THROUGH_EVERY`): t, the frame's and the grid's frequency (Hz), the PCC voltage's angle
+//! in the frame (rad), p, q, v, the phase peak, active and reactive current, the limit flag, E,
+//! v_dc and the modulation and source limit flags.
 
 use dvpp_control::converter::{Abc, Dq, InnerDesign};
 use dvpp_controllers::emt::{

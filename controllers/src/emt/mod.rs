@@ -81,6 +81,46 @@ const V_PRE_TAU: f64 = 10.0;
 /// The voltage (pu) below which the PLL holds its frequency in a fault ride-through.
 const PLL_HOLD: f64 = 0.3;
 
+/// Grid-forming, option A: the virtual reactance (pu on `S_rated`) through which the voltage
+/// error a limited current reference leaves is read as power by the reference model (the
+/// frame's synchronizing power while limited; docs/emt.md, current limit and ride-through).
+const LIMIT_X: f64 = 0.4;
+
+/// Grid-forming, option A: the frame's damping against the grid while limited and in the
+/// recovery after, `D_slip` in units of `Tdes.D` (the reference model's own damping): the
+/// frame's swing against the grid after a fault at SCR 10 has ζ ≈ 0.1 without it, 0.4 with
+/// (docs/emt.md, current limit and ride-through).
+const SLIP_DAMPING: f64 = 1.8;
+
+/// The time constant (s) through which the frame damping reads the frame's speed against the
+/// MV voltage (the angle's derivative carries the 100 Hz ripple of unbalanced operation and the
+/// steps of faults).
+const SLIP_TAU: f64 = 0.02;
+
+/// Grid-forming, option A: the threshold virtual impedance on the voltage reference (after
+/// Qoria et al.'s threshold virtual impedance): it acts beyond `TVI_THRESHOLD · I_max` of the
+/// converter current's magnitude (through `TVI_TAU`), `TVI_GAIN` pu of resistance per pu of
+/// current beyond it, `X/R` = `TVI_X_R`: in a dip the current turns reactive (0.24 -> 0.95 pu
+/// reactive in a 0.5 pu dip at SCR 10) and stays below `I_max`, where the limit on the reference
+/// remains the bound.
+const TVI_THRESHOLD: f64 = 1.1 / 1.2;
+const TVI_GAIN: f64 = 1.0;
+const TVI_X_R: f64 = 5.0;
+const TVI_TAU: f64 = 2e-3;
+
+/// How long (s) the frame damping acts after the current was last limited, and the last part
+/// of it over which it fades out.
+const SLIP_RECOVERY: f64 = 2.0;
+const SLIP_FADE: f64 = 1.0;
+
+/// The frame damping's largest power (pu of the unit's rating): a phase jump or a fault's
+/// voltage collapse turns the measured angle by up to π within a sample.
+const SLIP_MAX: f64 = 0.5;
+
+/// Grid-forming, option A: the zero-sequence converter current (pu) from which on the unit
+/// takes its star point as grounded and controls the zero sequence to zero.
+const ZERO_SEQUENCE_SEEN: f64 = 1e-3;
+
 /// One sample of the measurements (pu on `S_rated`, instantaneous), at time `t` (s).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct EmtMeasurement {
@@ -190,6 +230,23 @@ pub struct EmtUnit {
     iq_pre: f64,
     /// The converter voltage the last output asked for (dq, pu), for the converter power.
     v_m: Dq,
+    /// Grid-forming, option A: a zero-sequence current has been seen in the converter (its star
+    /// point is grounded), and the converter's zero-sequence voltage commanded for the next
+    /// step (pu), which drives that current to zero.
+    zero_path: bool,
+    v_m0: f64,
+    /// Grid-forming, option A: the MV voltage of the last sample (dq, the frame), and the
+    /// frame's speed against it through `SLIP_TAU` (pu), which the frame damping reads.
+    vg_last: Dq,
+    slip: f64,
+    /// Grid-forming, option A: how long (s) the frame damping still acts, set to
+    /// `SLIP_RECOVERY` whenever the current is limited.
+    recovery: f64,
+    /// Grid-forming, option A: the converter current's magnitude through `TVI_TAU` (pu), which
+    /// the threshold virtual impedance reads.
+    i_filt: f64,
+    /// Grid-forming, option A: the virtual impedance acted in the last sample.
+    tvi_active: bool,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
     /// (dq, pu, its frame), for the voltage the reactive reference model reads.
     i_g_prev: Dq,
@@ -328,6 +385,13 @@ impl EmtUnit {
             i_src,
             k_d: damping_gain(p.dc.tau_dc, data.c_dc, data.g_dc, data.k_dc, p.dc.zeta),
             warned_gains: false,
+            zero_path: false,
+            v_m0: 0.0,
+            vg_last: vg,
+            slip: 0.0,
+            recovery: 0.0,
+            i_filt: fm.i_f.norm(),
+            tvi_active: false,
         };
         let mut notices = Vec::new();
         let limit = unit.headroom(m.t);
@@ -394,7 +458,12 @@ impl EmtUnit {
     fn modulation(&self, v_dc: f64, rho: f64) -> [f64; 3] {
         let scale = 0.5 * self.params.vdc_ratio * v_dc.max(V_DC_FLOOR);
         let v = self.v_m.to_abc(rho);
-        [v.a, v.b, v.c].map(|x| (x / scale).clamp(-1.0, 1.0))
+        if self.zero_path {
+            let v0 = self.v_m0;
+            [v.a + v0, v.b + v0, v.c + v0].map(|x| (x / scale).clamp(-1.0, 1.0))
+        } else {
+            [v.a, v.b, v.c].map(|x| (x / scale).clamp(-1.0, 1.0))
+        }
     }
 
     /// One sample: the measurements at `m.t` and the operator's gains; the command for the
@@ -465,8 +534,66 @@ impl EmtUnit {
         let (v_m, df_next, reference_limited) = match &mut self.pf {
             PfReference::Forming(pf) => {
                 layer::set_p_gains(pf, p.adpf_p.kind, gains.mu_p, &lpf[..n_lpf])?;
-                let (df, dtheta) =
-                    layer::forming_angle(pf, (pw - p_set) * to_dvpp, h, p.rating.f_nom);
+                // Option A: the threshold virtual impedance `k (|i_f| - I_th) (1 + j X/R)`
+                // (`TVI_*`) beyond `I_th`, on the voltage reference: the current a fault drives
+                // turns reactive and stays below `I_max` (the limit on the reference remains
+                // the bound), and its weight `w_tvi` (0 at `I_th`, 1 at `I_th + 0.05`).
+                self.i_filt += (fm.i_f.norm() - self.i_filt) * (h / TVI_TAU);
+                let i_th = TVI_THRESHOLD * p.inner.i_max;
+                let over = if self.hinf.is_none() {
+                    (self.i_filt - i_th).max(0.0)
+                } else {
+                    0.0
+                };
+                let w_tvi = (over / 0.05).min(1.0);
+                self.tvi_active = over > 0.0;
+                // Option A while the last sample's current reference was limited, or the
+                // virtual impedance acts: the reference model reads the delivered power plus
+                // the power a virtual reactance `LIMIT_X` would carry on the voltage `E - v_c`
+                // (weighted in as the limit cuts deeper or the impedance grows; the frame's
+                // angle ahead of the grid's shows as `ev_q > 0`), so that the frame keeps
+                // synchronized with the grid while the current, hence the power, is held.
+                let limited = self.hinf.is_none() && (self.inner.current_limited() || w_tvi > 0.0);
+                let p_model = if limited {
+                    let ev_limit = self.inner.limit_error();
+                    let ev_tvi = (Dq { d: self.e, q: 0.0 } - fm.v_c) * w_tvi;
+                    let ev = if ev_tvi.norm() > ev_limit.norm() {
+                        ev_tvi
+                    } else {
+                        ev_limit
+                    };
+                    pw + self.e * ev.q / LIMIT_X * to_base
+                } else {
+                    pw
+                };
+                // Option A: the frame's damping against the grid, while the current is limited
+                // and over the recovery after (`SLIP_RECOVERY`, fading out over its last
+                // `SLIP_FADE`). The frame's speed against the MV voltage (the slip: the angle
+                // the voltage turns back in the frame per sample), through `SLIP_TAU`, read by
+                // the reference model as the power `D_slip · slip` (`D_slip` = `SLIP_DAMPING ·
+                // Tdes.D`, on S_dvpp, at most `SLIP_MAX` of the rating): it damps the frame's
+                // swing against the grid after a fault (with the q PI's E, 1.7 Hz, ζ 0.1
+                // without it). Unlimited operation is untouched (the slip is tracked, unread).
+                let damping = if self.hinf.is_none() {
+                    let last = self.vg_last;
+                    let turn = dvpp_math::atan2(last.d * vg.q - last.q * vg.d, last.p(vg));
+                    self.vg_last = vg;
+                    self.slip += (-turn / (omega_b * h) - self.slip) * (h / SLIP_TAU);
+                    if limited {
+                        self.recovery = SLIP_RECOVERY;
+                    } else {
+                        self.recovery = (self.recovery - h).max(0.0);
+                    }
+                    let max = SLIP_MAX / to_dvpp * to_base;
+                    let fade = (self.recovery / SLIP_FADE).min(1.0);
+                    (self.recovery > 0.0)
+                        .then(|| (fade * SLIP_DAMPING * p.tdes.d * self.slip).clamp(-max, max))
+                } else {
+                    None
+                };
+                let dp = (p_model - p_set) * to_dvpp;
+                let dp = damping.map_or(dp, |d| dp + d);
+                let (df, dtheta) = layer::forming_angle(pf, dp, h, p.rating.f_nom);
                 // Option B: the state feedback on the reactive error of this sample; option A:
                 // the q PI sets E.
                 let b = match self.hinf.as_mut() {
@@ -496,6 +623,9 @@ impl EmtUnit {
                         Some(v)
                     }
                     None => {
+                        // While limited the q PI's integral holds (the reactive power follows
+                        // the limited current, not E).
+                        let held = self.e_int;
                         self.e = layer::voltage_matching(
                             &mut self.e_int,
                             self.q_ref,
@@ -506,6 +636,9 @@ impl EmtUnit {
                             p.qpi.e_max,
                             h,
                         );
+                        if limited {
+                            self.e_int = held;
+                        }
                         None
                     }
                 };
@@ -513,8 +646,13 @@ impl EmtUnit {
                 self.theta += dtheta;
                 let v_m = b.unwrap_or_else(|| {
                     // The capacitor-voltage reference behind the virtual resistance.
-                    let v_ref = Dq { d: self.e, q: 0.0 } - fm.i_g * p.vi_r;
-                    self.inner.step(&fm, v_ref, omega, v_m_max, h)
+                    let mut v_ref = Dq { d: self.e, q: 0.0 } - fm.i_g * p.vi_r;
+                    if over > 0.0 {
+                        let k = TVI_GAIN * over;
+                        v_ref = v_ref - (fm.i_g + fm.i_g.rot90() * TVI_X_R) * k;
+                    }
+                    let e = Dq { d: self.e, q: 0.0 };
+                    self.inner.step(&fm, v_ref, e, omega, v_m_max, h)
                 });
                 (v_m, df, false)
             }
@@ -648,6 +786,21 @@ impl EmtUnit {
         let now = self.source_range(t);
         let source = drawn > now[1] || drawn < now[0];
 
+        // Zero sequence (grid-forming, option A): the dq loops see none. A three-wire converter
+        // carries none; once a zero-sequence current shows (a grounded star: the converter's dc
+        // midpoint, the filter capacitors' star and the transformer's), the converter's
+        // zero-sequence voltage follows the capacitors' and drives the current to zero at the
+        // current loop's gain, so that it adds nothing to the phase currents.
+        if self.hinf.is_none() && matches!(self.pf, PfReference::Forming(_)) {
+            let i_0 = (m.i_f.a + m.i_f.b + m.i_f.c) / 3.0;
+            if i_0.abs() > ZERO_SEQUENCE_SEEN {
+                self.zero_path = true;
+            }
+            if self.zero_path {
+                let v_c0 = (m.v_c.a + m.v_c.b + m.v_c.c) / 3.0;
+                self.v_m0 = v_c0 - self.inner.gains().kp_i * i_0;
+            }
+        }
         self.v_m = v_m;
         self.df = df_next;
         let rho_out = rho + 1.5 * h * omega_b * (1.0 + df_next);
@@ -673,7 +826,7 @@ impl EmtUnit {
             limit_current: match self.hinf {
                 // Option B does not limit its current: the flag says it is beyond I_max.
                 Some(_) => i_ac > p.inner.i_max,
-                None => reference_limited || self.inner.current_limited(),
+                None => reference_limited || self.inner.current_limited() || self.tvi_active,
             },
             limit_modulation: self.hinf.as_ref().map_or(
                 self.inner.modulation_limited(),

@@ -16,11 +16,21 @@
 //! While a limit holds, that loop's integral stops (no wind-up); the current limit acts on
 //! the inner loop's reference, so a fault or overload is met by the current loop holding
 //! `I_max` while the voltage sags.
+//!
+//! Grid-forming ([`InnerLoops::step`]): while the reference is limited, the voltage `E - v_c`
+//! across the virtual impedance is kept for the frame ([`InnerLoops::limit_error`]), weighted
+//! in as the unlimited reference goes [`LIMIT_BAND`] beyond `I_max` (zero where the limit
+//! starts to act), so that the frame's synchronizing term it feeds is continuous there.
 
 use super::filter::ConverterData;
 use super::frame::Dq;
 use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
+
+/// How far beyond `I_max` (fraction) the unlimited grid-forming reference goes before
+/// [`InnerLoops::limit_error`] carries the whole voltage across the virtual impedance (about
+/// 0.3 pu of voltage error with the default voltage loop's `k_pv`).
+pub const LIMIT_BAND: f64 = 0.05;
 
 /// The loops' bandwidths and limits, from which [`InnerDesign::gains`] follow.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -96,6 +106,9 @@ pub struct InnerLoops {
     xi_v: Dq,
     xi_i: Dq,
     i_ref: Dq,
+    /// The voltage error `v_ref - v_c` of the last sample if its reference was limited (zero
+    /// otherwise).
+    limit_error: Dq,
     current_limited: bool,
     modulation_limited: bool,
 }
@@ -110,6 +123,7 @@ impl InnerLoops {
             xi_v: Dq::default(),
             xi_i: Dq::default(),
             i_ref: Dq::default(),
+            limit_error: Dq::default(),
             current_limited: false,
             modulation_limited: false,
         }
@@ -123,6 +137,12 @@ impl InnerLoops {
     /// The current reference of the last sample (after the limit).
     pub fn i_ref(&self) -> Dq {
         self.i_ref
+    }
+
+    /// Grid-forming: the voltage `E - v_c` across the virtual impedance in the last sample if
+    /// its current reference was limited (weighted in over [`LIMIT_BAND`]), zero otherwise.
+    pub fn limit_error(&self) -> Dq {
+        self.limit_error
     }
 
     /// Whether the last sample limited the current reference.
@@ -145,13 +165,16 @@ impl InnerLoops {
         self.i_ref = m.i_f;
     }
 
-    /// The converter voltage for this sample: `v_ref` the capacitor-voltage reference, `omega`
-    /// the frame's speed (pu), `v_m_max` the largest converter voltage the dc link allows,
-    /// `h` the sampling period (s).
+    /// The converter voltage for this sample: `v_ref` the capacitor-voltage reference, `e` the
+    /// voltage behind the virtual impedance it is taken from (a grid-forming unit's `E`; the
+    /// limited reference's direction is taken from `e - v_c`), `omega` the frame's speed (pu),
+    /// `v_m_max` the largest converter voltage the dc link allows, `h` the sampling period (s).
+    #[allow(clippy::too_many_arguments)]
     pub fn step(
         &mut self,
         m: &FilterMeasurement,
         v_ref: Dq,
+        e: Dq,
         omega: f64,
         v_m_max: f64,
         h: f64,
@@ -160,9 +183,13 @@ impl InnerLoops {
         // Voltage loop.
         let ev = v_ref - m.v_c;
         let ff = m.i_g + m.v_c.rot90() * (omega * self.data.c_f);
-        self.limit_current(ff + ev * g.kp_v + self.xi_v);
+        let raw = ff + ev * g.kp_v + self.xi_v;
+        self.limit_current(raw);
         if !self.current_limited {
             self.xi_v = self.xi_v + ev * (g.ki_v * h);
+            self.limit_error = Dq::default();
+        } else {
+            self.limit_error = forming_limited(raw, e - m.v_c, self.i_max);
         }
         self.current_step(m, self.i_ref, omega, v_m_max, h)
     }
@@ -219,6 +246,14 @@ impl InnerLoops {
         self.gains = design.gains(&self.data, omega_b);
         self.i_max = design.i_max;
     }
+}
+
+/// The weight `w = (|raw|/I_max - 1)/LIMIT_BAND` (at most 1) of a grid-forming reference
+/// `raw` beyond `I_max`, times `ev = E - v_c`: zero where the limit starts to act and the whole
+/// voltage across the virtual impedance once the limit cuts [`LIMIT_BAND`] of the reference.
+fn forming_limited(raw: Dq, ev: Dq, i_max: f64) -> Dq {
+    let w = ((raw.norm() / i_max - 1.0) / LIMIT_BAND).min(1.0);
+    ev * w
 }
 
 #[cfg(test)]
@@ -316,7 +351,7 @@ mod tests {
                 d: if k >= 4000 { 1.0 } else { 0.9 },
                 q: 0.0,
             };
-            let next = loops.step(&measure(&x), v_ref, 1.0, 1.5, H);
+            let next = loops.step(&measure(&x), v_ref, v_ref, 1.0, 1.5, H);
             x = lcl.step(&x, v_m, Dq::default());
             v_m = next;
             if k >= 4000 {
@@ -343,7 +378,8 @@ mod tests {
         data.r_t += 0.5;
         let lcl = Lcl::discretize(&data, WB, 1.0, H);
         for _ in 0..8000 {
-            let next = loops.step(&measure(&x), Dq { d: 1.0, q: 0.0 }, 1.0, 1.5, H);
+            let one = Dq { d: 1.0, q: 0.0 };
+            let next = loops.step(&measure(&x), one, one, 1.0, 1.5, H);
             x = lcl.step(&x, v_m, Dq::default());
             v_m = next;
         }

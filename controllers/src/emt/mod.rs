@@ -122,7 +122,8 @@ pub struct EmtCommand {
     pub p_avail: f64,
     /// Magnitude of the converter-side current (pu of the rated current).
     pub i_ac: f64,
-    /// Option A: the current reference is held at `I_max`; option B: the current is beyond it.
+    /// Option A: the current reference is held at `I_max`; option B: its current-limited mode
+    /// (option A's cascade) runs.
     pub limit_current: bool,
     /// The converter voltage is held at the modulation limit.
     pub limit_modulation: bool,

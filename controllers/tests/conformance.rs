@@ -265,7 +265,20 @@ fn closed_loop(
     (EmtMeasurement, EmtCommand),
     Vec<(EmtMeasurement, f64, EmtCommand)>,
 ) {
-    let params = case.params();
+    closed_loop_with(case, &case.params(), n)
+}
+
+/// [`closed_loop`] with the unit's parameters `params` instead of the case's.
+#[allow(clippy::type_complexity)]
+fn closed_loop_with(
+    case: &Case,
+    params: &EmtParams,
+    n: usize,
+) -> (
+    (EmtMeasurement, EmtCommand),
+    Vec<(EmtMeasurement, f64, EmtCommand)>,
+) {
+    let params = *params;
     let mut plant = Harness::<Plant>::from_toml(&case.plant_toml());
     assert_eq!(plant.setup_experiment(0.0, None), Status::Ok);
     let f = params.filter;
@@ -562,5 +575,43 @@ fn retune_takes_the_tunable_parameters_only() {
     assert_eq!(
         unit.retune(&new).unwrap_err().to_string(),
         "'inner.voltage_hz' = 0: must be > 0"
+    );
+}
+
+/// `limit.source` is what any host sees: the converter draws more power from its dc side than
+/// the primary source can deliver. On the weak grid the load step takes the unit's power up (by
+/// 0.12 pu of its rating beyond the range below); with an availability just above its dispatch
+/// (0.34 pu on S_base, 0.567 of its rating, against 0.5 exported plus the link's 0.05 of losses)
+/// the flag is off before the step and on wherever the power exported and the link's losses
+/// alone exceed the range; with the default availability (1 pu of its rating) it never rises.
+#[test]
+fn limit_source_flags_power_the_source_cannot_deliver() {
+    let case = &CASES[1];
+    assert_eq!(case.grid, Grid::Weak);
+    let mut tight = case.params();
+    tight.source.p_avail0 = 0.34;
+    let to_rated = tight.rating.s_base / tight.rating.s_rated;
+    let (_, steps) = closed_loop_with(case, &tight, 2000);
+    let event = (T_EVENT / H).round() as usize;
+    assert!(
+        steps[..event].iter().all(|(_, _, c)| !c.limit_source),
+        "the flag before the load step, where the unit draws less than the source has"
+    );
+    let beyond: Vec<_> = steps[event..]
+        .iter()
+        .filter(|(m, _, c)| c.p * to_rated + tight.dc.g_dc * m.v_dc * m.v_dc > c.p_src_max + 0.05)
+        .collect();
+    assert!(
+        !beyond.is_empty(),
+        "the load step should carry the exported power beyond the source's range"
+    );
+    assert!(
+        beyond.iter().all(|(_, _, c)| c.limit_source),
+        "the flag must be on wherever the power exported and the link's losses alone exceed the source's range by 0.05 pu"
+    );
+    let (_, steps) = closed_loop(case, 2000);
+    assert!(
+        steps.iter().all(|(_, _, c)| !c.limit_source),
+        "with 1 pu of its rating available the source is never short"
     );
 }

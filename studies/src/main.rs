@@ -17,7 +17,9 @@ studies:
   sweep [--runs N] [--seed S]
                              case study II over ε with N (default 20) Monte Carlo load steps
                              per family (at bus 2, at a random bus; seed 1)
-  outage                     case study II's outage of SG1 and SG3, a verdict per ε";
+  outage                     case study II's outage of SG1 and SG3, a verdict per ε
+  ride-through [--only TEXT] case study I's DVPP at EMT level through the grid codes' events
+                             (dips, faults, 25° jumps, 5 Hz/s) per option, mode and SCR";
 
 fn main() -> ExitCode {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -35,6 +37,7 @@ fn main() -> ExitCode {
         Some("case3") => dvpp_studies::case3::case3(&root, &args[1..]),
         Some("sweep") => dvpp_studies::sweep::sweep(&root, &args[1..]),
         Some("outage") if args.len() == 1 => dvpp_studies::outage::outage(&root).map(|_| ()),
+        Some("ride-through") => dvpp_studies::ride_through::ride_through(&root, &args[1..]),
         _ => Err(USAGE.into()),
     };
     match result {

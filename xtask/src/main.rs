@@ -116,6 +116,12 @@ tasks:
   outage   bundle, then run case study II's outage of SG1 and SG3 (case2_outage_eps000 ...
            eps100): a verdict per ε in results/case2_outage.csv, tests/figures/case2_outage.svg
            and the table of docs/case-studies.md
+  ride-through
+           bundle, then run case study I's DVPP at EMT level (emt_thevenin, emt_thevenin_hinf)
+           through the grid codes' events (dips to 0.5 and 0.1 pu, three-phase, single-line and
+           line-to-line faults, ±25° phase jumps, ±5 Hz/s) per control (option A, option B,
+           grid-following) and SCR (10, 3, 1.5) on all cores: results/ride_through.csv,
+           tests/figures/ride_through.svg and the table of docs/emt-unit.md
   fuzz [--cases N] [--seed S] [--jobs J] [--first K]
            bundle the FMUs and case1_load, then run N (default 10000) seeded cases, in turn: a
            variant of case1_load's SSD run by the `cosim` binary, a variant of a shipped
@@ -150,7 +156,7 @@ fn main() -> ExitCode {
         Some("bundle") => bundle(&args[1..]).map(|_| ()),
         Some("cosim") => run(master_binary("cosim").args(&args[1..])),
         // The case studies: bundle, then the studies' release binary.
-        Some(study @ ("demo" | "sweep" | "case3" | "outage")) => {
+        Some(study @ ("demo" | "sweep" | "case3" | "outage" | "ride-through")) => {
             bundle(&[]).and_then(|_| run(study_binary()?.arg(study).args(&args[1..])))
         }
         Some("bench") => bench(),

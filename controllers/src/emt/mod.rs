@@ -127,7 +127,10 @@ pub struct EmtCommand {
     pub limit_current: bool,
     /// The converter voltage is held at the modulation limit.
     pub limit_modulation: bool,
-    /// The primary source is held at a bound of its range while the command asks for more.
+    /// The power the converter draws from its dc side (its ac power and the link's losses
+    /// `G_dc v_dc²`) is outside the primary source's range `[p_src_min, p_src_max]`: the dc link
+    /// delivers or takes the difference (in a host that models no dc link and holds `v_dc` at
+    /// 1, its ideal dc supply does, beyond what the primary source has).
     pub limit_source: bool,
     /// Warnings and events of this call, for the host's log.
     pub notices: Vec<Notice>,
@@ -652,7 +655,12 @@ impl EmtUnit {
         let i_cmd = command / v_range;
         let i0 = self.i_src.clamp(lo, hi);
         self.i_src = (i_cmd + (i0 - i_cmd) * dvpp_math::exp(-h / p.dc.tau_dc)).clamp(lo, hi);
-        let source = (self.i_src >= hi && i_cmd > hi) || (self.i_src <= lo && i_cmd < lo);
+        // The source's limit as any host sees it: the power the converter draws from its dc side
+        // (its ac power and the link's losses) is outside what the source can deliver now, so
+        // the dc link (or a host's ideal dc supply, where it models no link) makes up the rest.
+        let drawn = p_conv + g_dc * v_dc * v_dc;
+        let now = self.source_range(t);
+        let source = drawn > now[1] || drawn < now[0];
 
         self.v_m = v_m;
         self.df = df_next;

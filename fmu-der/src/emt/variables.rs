@@ -471,7 +471,7 @@ impl LimitFlags {
         );
         let source = flag(
             "limit.source",
-            "the primary source is held at a bound of its availability (p_src_min, p_src_max) while the dc command asks for more",
+            "the converter draws more (or less) power from its dc side, ac power plus link losses, than the primary source can deliver now (p_src_min, p_src_max): the dc link, or a host's ideal dc supply, makes up the difference",
         );
         LimitFlags {
             current,

@@ -318,3 +318,79 @@ fn parameters_at_fault_are_named_as_the_fmu_names_them() {
         Some("limit.priority")
     );
 }
+
+/// A grid-forming unit (60 MVA at 0.3 pu on S_base, `vi.r` = 0.3 as case study I's units in
+/// `phasor_thevenin`) on a stiff bus whose voltage dips to 0.5 pu from 0.1 s for 150 ms, its
+/// current held at `I_max` in the direction of the slot's free current `(E∠θ - V)/z_f`, as the
+/// grid FMU's slot holds it; with `limit.priority` `priority` and the dip (`dip`) or without.
+/// Returns the commands and, over the dip after its first 20 ms, the mean current magnitude
+/// (pu of the rated current) and the mean reactive share `i_q/|i|` (`q = |V| i_q`).
+fn dip(priority: Priority, dip: bool) -> (Vec<PhasorCommand>, f64, f64) {
+    let mut params = params(Mode::GridForming);
+    params.vi_r = 0.3;
+    params.stage.priority = priority;
+    let to_base = S_RATED / S_BASE;
+    let z_f = Complex::new(params.slot.r_f, params.slot.x_f) / to_base;
+    let i_max = params.stage.i_max * to_base;
+    let p0 = 0.3;
+    let at_start = PhasorMeasurement {
+        t: 0.0,
+        p: p0,
+        q: 0.0,
+        v: 1.0,
+        v_angle: 0.0,
+    };
+    let (mut unit, mut command) =
+        PhasorUnit::initialize(&params, &at_start, &gains(), None).expect("the unit initializes");
+    let (mut commands, mut i_sum, mut q_share, mut n) = (Vec::new(), 0.0, 0.0, 0.0f64);
+    for k in 0..400 {
+        let t = k as f64 * STEP;
+        let in_dip = dip && (0.1..0.25).contains(&t);
+        let v = Complex::new(if in_dip { 0.5 } else { 1.0 }, 0.0);
+        let free = (dvpp_math::cpolar(command.e, command.theta) - v) / z_f;
+        let mag = dvpp_math::cabs(free);
+        let i = if mag > i_max {
+            free * (i_max / mag)
+        } else {
+            free
+        };
+        let s = v * i.conj();
+        if in_dip && t >= 0.12 {
+            i_sum += dvpp_math::cabs(i) / to_base;
+            q_share += s.im / dvpp_math::cabs(s);
+            n += 1.0;
+        }
+        let m = PhasorMeasurement {
+            t,
+            p: s.re,
+            q: s.im,
+            v: dvpp_math::cabs(v),
+            v_angle: 0.0,
+        };
+        command = unit.step(&m, &gains(), STEP).expect("the unit steps");
+        commands.push(command.clone());
+    }
+    (commands, i_sum / n.max(1.0), q_share / n.max(1.0f64))
+}
+
+/// In a dip a grid-forming unit at its current limit gives mostly active current when it keeps
+/// the request's direction (`limit.priority` = 0: the voltage behind the virtual resistance asks
+/// for current in phase with the bus) and mostly reactive current with `limit.priority` = 1
+/// (the virtual impedance's direction, X/R = 5); both hold I_max. Where the limit does not act
+/// the two are the same bits.
+#[test]
+fn a_grid_forming_unit_gives_reactive_current_in_a_dip_with_reactive_priority() {
+    let (_, i_active, q_active) = dip(Priority::Active, true);
+    let (_, i_reactive, q_reactive) = dip(Priority::Reactive, true);
+    println!(
+        "in a 0.5 pu dip: |i| {i_active:.4} / {i_reactive:.4} pu, reactive share {q_active:.3} / {q_reactive:.3} (priority active / reactive)"
+    );
+    assert!((i_active - 1.2).abs() < 1e-9 && (i_reactive - 1.2).abs() < 1e-9);
+    assert!(q_active < 0.6, "{q_active}");
+    assert!(q_reactive > 0.9, "{q_reactive}");
+    let (plain, _, _) = dip(Priority::Active, false);
+    let (reactive, _, _) = dip(Priority::Reactive, false);
+    for (a, b) in plain.iter().zip(&reactive) {
+        assert!(a.e.to_bits() == b.e.to_bits() && a.theta.to_bits() == b.theta.to_bits());
+    }
+}

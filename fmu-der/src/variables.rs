@@ -208,7 +208,7 @@ impl StageVars {
                 "limit.priority",
                 Priority::Active.code(),
                 "",
-                "grid-following at I_max: 0 active current kept first, 1 reactive current kept first",
+                "at I_max: grid-following 0 active current kept first, 1 reactive current kept first; grid-forming 0 the current keeps its direction, 1 a request beyond I_max turns to the direction of a virtual impedance X/R = 5 on the voltage across the internal node (reactive current in dips)",
             )
             .range(0.0, 1.0)
             .tunable(),

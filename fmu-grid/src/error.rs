@@ -139,6 +139,11 @@ pub enum GridError {
         index: usize,
         reason: String,
     },
+    /// A bus fault's parameter `field` (`fault.bus`, `fault.R`, ...) is not admissible.
+    BadFault {
+        field: String,
+        reason: String,
+    },
     InvalidStep {
         t: f64,
         h: f64,
@@ -222,6 +227,9 @@ impl fmt::Display for GridError {
             }
             GridError::BadSlot { index, reason } => write!(f, "DER slot {index}: {reason}"),
             GridError::BadEvent { index, reason } => write!(f, "event {index}: {reason}"),
+            GridError::BadFault { field, reason } => {
+                write!(f, "parameter '{field}': {reason}")
+            }
             GridError::InvalidStep { t, h } => write!(f, "invalid step t = {t}, h = {h}"),
             GridError::TimeMismatch { expected, got } => {
                 write!(

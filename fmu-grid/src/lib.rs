@@ -23,7 +23,9 @@
 //! event i its override parameters, and the PCC, COI and power-balance outputs; per point of
 //! coupling k (case `[[poc]]`) the outputs `poc[k].p/q/v/f`, and for a case with an `[mv]` line
 //! group the R/X parameters `mv.rx`, `mv.line[k].rx` (the power flow is re-solved with them at
-//! initialization).
+//! initialization). Every case has the balanced bus fault `fault.bus/R/X/t/duration` (a shunt
+//! `1/(R + jX)` at the bus over the interval; `fault.bus` = 0, the default, is none) and its
+//! outputs `fault.on/i/v`.
 //!
 //! In initialization mode the outputs are the power-flow operating point (they depend on no
 //! input, so a master can initialize the DER FMUs from them); in step mode they are computed
@@ -50,6 +52,7 @@ mod variables;
 pub use case::{Case, CaseError, DerKind, DerSlot, Event, LoadModel};
 pub use config::{GridConfig, DEFAULT_CASE};
 pub use events::{EventOverride, EventState};
+pub use grid::{BusFault, FaultOutput};
 pub use grid::{
     DerInput, DerOutput, DerSetpoint, Grid, GridError, MachineOutput, Outputs, PccOutput,
     SlotLimit, FREQUENCY_BAND, LOSS_OF_SYNCHRONISM_ANGLE,
@@ -61,7 +64,7 @@ pub use powerflow::PowerFlow;
 use fmi_export::{Boolean, Context, Model, ModelError, Real, Store, Variables};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
-use variables::{EventVars, MachineVars, RxVars, SlotVars};
+use variables::{EventVars, FaultVars, MachineVars, RxVars, SlotVars};
 
 /// Start value of the slot limit inputs, and the magnitude from which a limit input means none.
 pub const NO_LIMIT: f64 = 1e6;
@@ -95,6 +98,8 @@ pub struct GridFmu {
     /// Generation, load, losses and generation − load − losses.
     balance: [Real; 4],
     load_shed: Real,
+    /// The balanced bus fault's parameters and outputs.
+    fault: FaultVars,
 }
 
 /// The grid FMU's running state: the grid being simulated.
@@ -175,6 +180,31 @@ impl GridFmu {
         s[loss] = o.loss_p;
         s[mismatch] = o.balance_p;
         s[self.load_shed] = grid.load_shed();
+        let fault = grid.fault_output();
+        s[self.fault.on] = fault.on;
+        s[self.fault.i] = fault.i;
+        s[self.fault.v] = fault.v;
+    }
+
+    /// The bus fault the `fault.*` parameters configure (None: `fault.bus` = 0).
+    fn fault_parameters(&self, s: &Store) -> Result<Option<BusFault>, ModelError> {
+        let f = &self.fault;
+        let bus = s[f.bus];
+        if bus == 0 {
+            return Ok(None);
+        }
+        let bus = u32::try_from(bus).map_err(|_| {
+            ModelError(format!(
+                "parameter 'fault.bus' = {bus}: need a bus id of the case, or 0 for no fault"
+            ))
+        })?;
+        Ok(Some(BusFault {
+            bus,
+            r: s[f.r],
+            x: s[f.x],
+            t: s[f.t],
+            duration: s[f.duration],
+        }))
     }
 }
 
@@ -279,6 +309,7 @@ impl Model for GridFmu {
             .map(|p| variables::declare_dvpp_pcc(v, p))
             .collect();
         let rx = case.mv.as_ref().map(|mv| RxVars::declare(v, &case, mv));
+        let fault = FaultVars::declare(v, &case);
         Ok(GridFmu {
             built: grid,
             input_start: input_auto,
@@ -294,6 +325,7 @@ impl Model for GridFmu {
             energized,
             balance,
             load_shed,
+            fault,
         })
     }
 
@@ -327,6 +359,12 @@ impl Model for GridFmu {
             };
             st.grid
                 .set_event_override(i, ov)
+                .map_err(|err| ModelError(err.to_string()))?;
+        }
+        let fault = self.fault_parameters(s)?;
+        if fault != st.grid.fault() {
+            st.grid
+                .set_fault(fault)
                 .map_err(|err| ModelError(err.to_string()))?;
         }
         self.write_outputs(&st.grid, s);

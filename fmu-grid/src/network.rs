@@ -137,11 +137,13 @@ fn lowest_voltage<'a>(v: impl Iterator<Item = &'a C64>) -> (usize, f64) {
 impl Network {
     /// Build and factorize the admittance matrix of the in-service `branches` with the case's
     /// shunts, the constant-impedance loads `load_y`, the Norton admittances of the machines in
-    /// service and of the grid-forming slots, and the impedance columns of the source buses.
+    /// service and of the grid-forming slots, a bus fault's shunt admittance `fault` (bus index,
+    /// admittance) while it is on, and the impedance columns of the source buses.
     pub(crate) fn build(
         case: &Case,
         branches: &[BranchData],
         load_y: &[C64],
+        fault: Option<(usize, C64)>,
         inj: &Injections,
     ) -> Result<Network, GridError> {
         let n = case.buses.len();
@@ -154,6 +156,9 @@ impl Network {
         }
         for d in inj.ders.iter().filter(|d| d.kind == DerKind::GridForming) {
             y[(d.bus, d.bus)] += d.y;
+        }
+        if let Some((bus, yf)) = fault {
+            y[(bus, bus)] += yf;
         }
         let lu = y.lu();
         if !lu.is_invertible() {
@@ -431,7 +436,7 @@ mod tests {
             ders: &ders,
             load_s: &load_s,
         };
-        let net = Network::build(&case, &branches, &load_y, &inj).unwrap();
+        let net = Network::build(&case, &branches, &load_y, None, &inj).unwrap();
         let mut sol = Solution {
             v: vec![C64::new(1.0, 0.0); 2],
             alg: Vec::new(),
@@ -466,7 +471,7 @@ mod tests {
             ders: &ders,
             load_s: &load_s,
         };
-        let net = Network::build(&case, &branches, &load_y, &inj).unwrap();
+        let net = Network::build(&case, &branches, &load_y, None, &inj).unwrap();
         let mut sol = Solution {
             v: vec![C64::new(1.0, 0.0); 2],
             alg: Vec::new(),
@@ -490,7 +495,7 @@ mod tests {
             load_s: &zero,
         };
         assert!(matches!(
-            Network::build(&case, &branches, &zero, &inj),
+            Network::build(&case, &branches, &zero, None, &inj),
             Err(GridError::SingularNetwork)
         ));
     }

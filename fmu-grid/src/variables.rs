@@ -1,10 +1,11 @@
 //! The grid FMU's variables, declared in groups: the case's bases, each scheduled event's
 //! overrides, each DER slot, the PCC, each machine, the power balance, the area's load, each
-//! point of coupling and DVPP PCC, and the R/X parameters of the `[mv]` lines.
+//! point of coupling and DVPP PCC, the R/X parameters of the `[mv]` lines, and the balanced
+//! bus fault.
 
 use crate::case::{self, Case, DvppPcc, Machine, MvLines, Poc};
 use crate::{event_label, ports, DerSetpoint, Event, EventState, E_MAX, NO_LIMIT};
-use fmi_export::{Boolean, Real, Spec, Variables};
+use fmi_export::{Boolean, Integer, Real, Spec, Variables};
 
 /// Handles of one DER slot: its two inputs (θ, E or p_ref, q_ref), its converter's limits and
 /// four outputs.
@@ -478,5 +479,84 @@ impl RxVars {
             })
             .collect();
         RxVars { mv: mv_rx, lines }
+    }
+}
+
+/// Handles of the balanced bus fault's parameters and outputs (`fault.*`).
+pub(crate) struct FaultVars {
+    pub(crate) bus: Integer,
+    pub(crate) r: Real,
+    pub(crate) x: Real,
+    pub(crate) t: Real,
+    pub(crate) duration: Real,
+    pub(crate) on: Boolean,
+    pub(crate) i: Real,
+    pub(crate) v: Real,
+}
+
+impl FaultVars {
+    /// The fault's parameters (named as the EMT plant's test bench names its fault's) and
+    /// outputs; declared last, so that every other variable keeps its value reference.
+    pub(crate) fn declare(v: &mut Variables, case: &Case) -> Self {
+        let ids: Vec<String> = case.buses.iter().map(|b| b.id.to_string()).collect();
+        let real = |v: &mut Variables, name: &str, start: f64, unit: &str, what: &str| {
+            v.real(Spec::parameter(name, start, unit, what).min(0.0))
+        };
+        FaultVars {
+            bus: v.integer(
+                Spec::parameter(
+                    "fault.bus",
+                    0,
+                    "",
+                    &format!(
+                        "balanced fault: the faulted bus, a bus id of the case ({}); 0 = no fault",
+                        ids.join(", ")
+                    ),
+                )
+                .min(0.0),
+            ),
+            r: real(
+                v,
+                "fault.R",
+                0.0,
+                "pu",
+                "balanced fault: fault resistance per phase, on S_base",
+            ),
+            x: real(
+                v,
+                "fault.X",
+                0.001,
+                "pu",
+                "balanced fault: fault reactance per phase, on S_base (fault.R and fault.X not both 0; 0.001 is a bolted fault)",
+            ),
+            t: real(
+                v,
+                "fault.t",
+                1.0,
+                "s",
+                "balanced fault: the fault's shunt 1/(fault.R + j fault.X) enters the network solution at this time (the internal steps split there)",
+            ),
+            duration: real(
+                v,
+                "fault.duration",
+                0.15,
+                "s",
+                "balanced fault: the fault is cleared at fault.t + fault.duration",
+            ),
+            on: v.boolean(Spec::boolean_output(
+                "fault.on",
+                "balanced fault: the fault is in the network",
+            )),
+            i: v.real(Spec::output(
+                "fault.i",
+                "pu",
+                "balanced fault: magnitude of the fault current, on S_base (0 while the fault is off)",
+            )),
+            v: v.real(Spec::output(
+                "fault.v",
+                "pu",
+                "balanced fault: voltage magnitude at the faulted bus (0 without a fault)",
+            )),
+        }
     }
 }

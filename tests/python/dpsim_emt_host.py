@@ -95,18 +95,23 @@ class Network:
         return n
 
     def add(self, comp, a, b, value=None):
+        """Connects comp from a to b; ``value``: its parameter, a number (the same in each phase)
+        or a 3x3 matrix."""
         if value is not None:
-            comp.set_parameters(value * np.eye(3))
+            comp.set_parameters(value if np.ndim(value) == 2 else value * np.eye(3))
         comp.connect([a, b])
         self.comps.append(comp)
         return comp
 
-    def rl(self, name, a, b, z, z_b, v_a, i):
+    def rl(self, name, a, b, z, z_b, v_a, i, three_wire=False):
         """Series R-L (z pu of z_b) from a to b; v_a the voltage at a, i the current (a to b).
-        Returns the inductor: its i_intf is the current from b to a."""
+        ``three_wire``: its zero sequence blocked (``three_wire_inductance``). Returns the
+        inductor: its i_intf is the current from b to a."""
         n = self.node(f"{name}_rl", v_a - z.real * i)
         self.add(self.ph3.Resistor(f"r_{name}", self.log), a, n, z.real * z_b)
-        return self.add(self.ph3.Inductor(f"l_{name}", self.log), n, b, z.imag * z_b / W_NOM)
+        l = z.imag * z_b / W_NOM
+        return self.add(self.ph3.Inductor(f"l_{name}", self.log), n, b,
+                        three_wire_inductance(l) if three_wire else l)
 
     def controlled_source(self, name, n, x):
         """A controlled voltage source from ground to n, starting at the phasor x (pu)."""
@@ -144,6 +149,19 @@ class Network:
         self._tmp.cleanup()
 
 
+# The zero-sequence inductance of a three-wire branch, per unit of its phase inductance.
+ZERO_SEQUENCE_BLOCK = 1e6
+
+
+def three_wire_inductance(l):
+    """The 3x3 inductance matrix (H) that is l for the positive and negative sequence and
+    ZERO_SEQUENCE_BLOCK l for the zero sequence: a branch with no zero-sequence current to speak
+    of (an ungrounded star, a three-wire unit), as DPsim's ph3 components all return through
+    ground. Balanced, it carries what the scalar l carries (DPsim's initialization included)."""
+    j = np.full((3, 3), 1.0 / 3.0)
+    return l * (np.eye(3) - j) + ZERO_SEQUENCE_BLOCK * l * j
+
+
 def instantaneous(x, t):
     """The three instantaneous phase voltages (V, 3x1) of the phasor x (pu) at time t."""
     return (V_R * (x * cmath.exp(1j * W_NOM * t) * ABC).real).reshape(3, 1)
@@ -155,9 +173,11 @@ class Converter:
     ``s_rated`` (VA) in the FMU's convention. ``f``: the filter and transformer data as the FMU
     has them (pu on S_rated, the L and C as their reactance and susceptance at f_nom). Starts at
     its steady state with the PCC at the phasor ``v_pcc`` and the grid-side current ``i_g``
-    (pu of the rated peak current, toward the PCC)."""
+    (pu of the rated peak current, toward the PCC). ``three_wire``: the transformer blocks the
+    zero sequence (a three-wire unit, as our plant's default ``der[k].grounding`` = 0); else the
+    unit is a grounded star (the source and C_f return through ground)."""
 
-    def __init__(self, net, name, s_rated, f, n_pcc, v_pcc, i_g):
+    def __init__(self, net, name, s_rated, f, n_pcc, v_pcc, i_g, three_wire=False):
         self.z_b = V_LL**2 / s_rated  # ohm
         self.i_r = (2.0 / 3.0) * s_rated / V_R  # A, the rated peak current
         z_f, z_t = complex(f["R_f"], f["L_f"]), complex(f["R_t"], f["L_t"])
@@ -169,7 +189,7 @@ class Converter:
         n_cap = net.node(f"{name}_cap", v_cap)
         self.l_f = net.rl(f"{name}_f", n_conv, n_cap, z_f, self.z_b, self.v_conv0, i_f)
         net.add(net.ph3.Capacitor(f"{name}_c_f", net.log), n_cap, net.gnd, f["C_f"] / (self.z_b * W_NOM))
-        self.l_t = net.rl(f"{name}_t", n_cap, n_pcc, z_t, self.z_b, v_cap, i_g)
+        self.l_t = net.rl(f"{name}_t", n_cap, n_pcc, z_t, self.z_b, v_cap, i_g, three_wire)
         self.n_cap = n_cap
 
     def bind(self):

@@ -79,6 +79,25 @@ const REFERENCE_TAU: f64 = 1e-3;
 /// one unit (0.05 s is not at SCR 1.5).
 const FREQUENCY_TAU: f64 = 0.1;
 
+/// Grid-following fault ride-through (docs/emt.md §9): the dead band of the voltage's deviation
+/// from its value before the event (pu; VDE-AR-N 4110/4120's default ±10 %), and the band's
+/// hysteresis on leaving it.
+const FRT_BAND: f64 = 0.1;
+const FRT_HYSTERESIS: f64 = 0.02;
+/// The k-factor: the additional reactive current (pu of the rated peak current) per pu of the
+/// voltage's deviation beyond the dead band, `Δi_q = K_FRT (Δv - 0.1)` (capacitive in a dip,
+/// inductive above the band), within I_max, reactive first.
+const K_FRT: f64 = 2.0;
+/// The time constant (s) through which the injection follows the deviation: 90 % within 25 ms
+/// (the grid codes' rise time, 30 ms); taken at once, the step of up to I_max closes the loop
+/// injection, voltage, deviation within the current loop's bandwidth and rings on weak grids
+/// (measured: loss of synchronism after a 0.5 pu dip at SCR 3 and 1.5).
+const FRT_TAU: f64 = 0.01;
+/// The time constant (s) of the voltage before the event (held during it).
+const V_PRE_TAU: f64 = 10.0;
+/// The voltage (pu) below which the PLL holds its frequency in a fault ride-through.
+const PLL_HOLD: f64 = 0.3;
+
 /// One sample of the measurements (pu on `S_rated`, instantaneous), at time `t` (s).
 #[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
 pub struct EmtMeasurement {
@@ -176,15 +195,26 @@ pub struct EmtUnit {
     q_ref: f64,
     /// Grid-following: the voltage deviation through `vq.tau`.
     dv_lag: f64,
-    /// Grid-following: the grid-side and capacitor voltages through `REFERENCE_TAU` (dq, PLL
-    /// frame), from which the current reference is computed.
+    /// Grid-following: through `REFERENCE_TAU` (dq, PLL frame), the MV voltage with the
+    /// transformer's `L_t di_g/dt` (the PLL's input and the fault ride-through's voltage), its
+    /// phasor estimate `v_c - (R_t + jX_t) i_g` (the current reference's magnitude) and the
+    /// capacitor voltage.
     vg_lag: Dq,
+    vg_phasor: Dq,
     vc_lag: Dq,
     /// Grid-following: the PLL's frequency deviation through `FREQUENCY_TAU` (pu), which the
     /// p-f reference model reads.
     df_lag: f64,
     /// Grid-following: the last sample's reactive current reference was held at `I_max`.
     limited: bool,
+    /// Grid-following fault ride-through: the voltage before the event (the estimate's
+    /// magnitude through `V_PRE_TAU`, held during the event), whether the unit is in it, the
+    /// voltage deviation beyond the dead band through `FRT_TAU` (pu), and the reactive
+    /// grid-side current reference before the event (PLL frame, pu of the rated peak).
+    v_pre: f64,
+    frt: bool,
+    dv_frt: f64,
+    iq_pre: f64,
     /// The converter voltage the last output asked for (dq, pu), for the converter power.
     v_m: Dq,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
@@ -315,9 +345,14 @@ impl EmtUnit {
             q_ref: q0,
             dv_lag: 0.0,
             vg_lag: vg,
+            vg_phasor: vg,
             vc_lag: fm.v_c,
             df_lag: 0.0,
             limited: false,
+            v_pre: vg.norm(),
+            frt: false,
+            dv_frt: 0.0,
+            iq_pre: -q0 / to_base / vg.norm(),
             v_m,
             i_g_prev: fm.i_g,
             vg_prev: vg,
@@ -603,9 +638,11 @@ impl EmtUnit {
                 // While the reactive current is limited, the voltage deviation's lag does not
                 // move further from zero (anti-windup: the reactive reference it drives cannot
                 // be delivered, and would hold the active current at zero after the voltage
-                // returns).
+                // returns); in a fault ride-through it holds (the k-factor injection is the
+                // response, and the droop takes over from where it was when the voltage is back).
                 let step = kv * (dv - self.dv_lag);
-                if !(self.limited && step * self.dv_lag > 0.0) {
+                let away = self.limited && step * self.dv_lag > 0.0;
+                if !(away || self.frt) {
                     self.dv_lag += step;
                 }
                 self.q_ref = self.q0 + self.vq.step(self.dv_lag, h) / to_dvpp;
@@ -615,15 +652,62 @@ impl EmtUnit {
                 // turn with the voltage's angle through `REFERENCE_TAU`, a second synchronization
                 // of about 160 Hz bandwidth that the unit's own current moves on a weak grid
                 // (docs/emt.md, grid-following on weak grids).
+                // The MV voltage with the transformer's `L_t di_g/dt` (centred over the last
+                // sample, as option B's): the phasor relation alone, `v_c - (R_t + jX_t) i_g`,
+                // reads the dc offsets of the currents after a voltage step (a 50 Hz component
+                // in dq, times X_t) as a swing of the voltage's angle of tens of degrees, on which
+                // the PLL swings by Hz and the current reference turns (docs/emt.md §9).
+                // The current reference's magnitude `|v|` stays on the phasor estimate: taken
+                // from `v_mv`, the derivative of the unit's own current closes a loop through it
+                // (measured on the generic unit at SCR 10: a sustained oscillation of the PLL's
+                // frequency by ±0.07 Hz and of the voltage by ±0.02 pu after a dip).
                 let k = -dvpp_math::expm1(-h / REFERENCE_TAU);
-                self.vg_lag = self.vg_lag + (vg - self.vg_lag) * k;
+                let di = (fm.i_g - self.i_g_prev) * (p.filter.l_t / (omega_b * h));
+                let v_mv = (vg + self.vg_prev) * 0.5 - di;
+                self.i_g_prev = fm.i_g;
+                self.vg_prev = vg;
+                self.vg_lag = self.vg_lag + (v_mv - self.vg_lag) * k;
+                self.vg_phasor = self.vg_phasor + (vg - self.vg_phasor) * k;
                 self.vc_lag = self.vc_lag + (fm.v_c - self.vc_lag) * k;
-                let (pr, qr) = ((p_set + dp) / to_base, self.q_ref / to_base);
-                let u = self.vg_lag.norm().max(1e-2);
-                let i_g = Dq {
+                // The active reference within what the primary source can take: a unit without
+                // storage (`[0, P_avail]`) cannot absorb more than its dc link's losses, and the
+                // p-f model's inertia and droop ask it to when the frequency rises (+5 Hz/s: the
+                // dc link charged to 1.3 pu, the converter saturated its modulation and lost
+                // synchronism).
+                let p_min = self.source_range(t)[0] - p.dc.g_dc;
+                let (pr, qr) = (((p_set + dp) / to_base).max(p_min), self.q_ref / to_base);
+                let u = self.vg_phasor.norm().max(1e-2);
+                let mut i_g = Dq {
                     d: pr / u,
                     q: -qr / u,
                 };
+                // Fault ride-through: beyond the dead band of the voltage before the event, the
+                // reactive current is the one before it plus `K_FRT` times the deviation beyond
+                // the band (through `FRT_TAU`, which also ramps it out after the event), the
+                // active current `p/|v|` as before; the reactive-first limit below keeps the sum
+                // within I_max.
+                let u_mv = self.vg_lag.norm();
+                let dev = self.v_pre - u_mv;
+                let band = if self.frt {
+                    FRT_BAND - FRT_HYSTERESIS
+                } else {
+                    FRT_BAND
+                };
+                let frt = dev.abs() > band;
+                self.frt = frt;
+                let beyond = if frt {
+                    dev - FRT_BAND * dev.signum()
+                } else {
+                    0.0
+                };
+                self.dv_frt += -dvpp_math::expm1(-h / FRT_TAU) * (beyond - self.dv_frt);
+                if frt {
+                    i_g.q = self.iq_pre;
+                } else {
+                    self.iq_pre = i_g.q;
+                    self.v_pre += -dvpp_math::expm1(-h / V_PRE_TAU) * (u_mv - self.v_pre);
+                }
+                i_g.q -= K_FRT * self.dv_frt;
                 // Plus the capacitor's current: the converter-side reference, limited to I_max
                 // reactive current first.
                 let raw = i_g + self.vc_lag.rot90() * (omega * p.filter.c_f);
@@ -633,9 +717,19 @@ impl EmtUnit {
                 let pll = self.pll.as_mut().expect("grid-following PLL");
                 pll.kp = p.pll.kp;
                 pll.ki = p.pll.ki;
-                pll.step(self.vg_lag.to_abc(rho), h);
+                // Below `PLL_HOLD` the voltage's angle is the unit's own current through the
+                // fault's impedance, not the grid's: the PLL holds its frequency.
+                if self.frt && u_mv < PLL_HOLD {
+                    pll.hold(h);
+                } else {
+                    pll.step(self.vg_lag.to_abc(rho), h);
+                }
                 let df = pll.delta_f();
-                self.df_lag += -dvpp_math::expm1(-h / FREQUENCY_TAU) * (df - self.df_lag);
+                // The p-f reference model does not read the PLL through a fault (its inertia
+                // would turn the PLL's swing at the fault's edges into active power).
+                if !self.frt {
+                    self.df_lag += -dvpp_math::expm1(-h / FREQUENCY_TAU) * (df - self.df_lag);
+                }
                 (v_m, df, limited)
             }
         };

@@ -1,7 +1,7 @@
 //! The grid-forming step: `Δf = -T_pf/m Δp` sets the angle, a PI on `E` makes `q` track its reference.
 
 use super::common::{Common, Outcome, StepPoint};
-use super::{limits, Held, PhasorMeasurement, PhasorParams};
+use super::{limits, Held, PhasorMeasurement, PhasorParams, Priority};
 use crate::{layer, Error};
 use dvpp_control::{Complex, GfmPfModel};
 use serde::{Deserialize, Serialize};
@@ -154,15 +154,32 @@ impl Forming {
                 f.theta + dvpp_math::carg(source * dvpp_math::cpolar(1.0, -f.theta)),
             )
         };
-        let modulation = e_source > e_cap;
-        let e_out = e_source.min(e_cap);
+        let mut modulation = e_source > e_cap;
+        let mut e_out = e_source.min(e_cap);
+        let mut theta_out = theta_out;
         let wanted = (dvpp_math::cpolar(e_out, theta_out) - bus) / z;
         let u = if v > limits::V_FLOOR {
             bus / v
         } else {
             dvpp_math::cpolar(1.0, f.theta)
         };
-        let lim = limits::saturate_forming(wanted * to_rated, u, v, i_max, budget);
+        let request = dvpp_math::cabs(wanted * to_rated) / i_max;
+        // Reactive current in dips (`limit.priority` = 1): beyond I_max the request turns to
+        // the virtual impedance's direction on the voltage across the internal node, and the
+        // converter imposes the voltage that asks for it (the slot holds it at I_max in the
+        // network solution); what that holds back is counted against the untouched request.
+        let sent = if p.stage.priority == Priority::Reactive && request > 1.0 {
+            let ev = dvpp_math::cpolar(f.e, f.theta) - bus;
+            let turned = limits::turn_reactive(wanted, request, ev);
+            let source = bus + turned * z;
+            modulation = dvpp_math::cabs(source) > e_cap;
+            e_out = dvpp_math::cabs(source).min(e_cap);
+            theta_out = f.theta + dvpp_math::carg(source * dvpp_math::cpolar(1.0, -f.theta));
+            (dvpp_math::cpolar(e_out, theta_out) - bus) / z
+        } else {
+            wanted
+        };
+        let lim = limits::saturate_forming(sent * to_rated, u, v, i_max, budget);
         // Its gain: the feedback closes a loop through the direct feedthrough `D` of
         // T_pf/m whose gain over one step, 2π f_nom h |D| (S_base/S_dvpp) E V/|Z|, can
         // exceed 1 (a low-pass unit, τ/(μ H)); the gain is cut to keep that loop at 0.5.
@@ -178,7 +195,6 @@ impl Forming {
         };
         out.e = e_out;
         out.theta = theta_out;
-        let request = dvpp_math::cabs(wanted * to_rated) / i_max;
         Outcome {
             current_limit: lim.current_limit,
             dc_limit: lim.dc_limit,

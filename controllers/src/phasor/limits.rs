@@ -18,6 +18,16 @@ pub const V_FLOOR: f64 = 0.05;
 /// A limit episode ends after this long without the limit acting (s).
 pub const RELEASE: f64 = 1.0;
 
+/// Grid-forming with `limit.priority` = 1: the ratio `X/R` of the virtual impedance whose
+/// current's direction a limited request turns to, `(E - V)/(R + jX)` (reactive current in a
+/// dip, active current as the internal angle moves ahead of the bus: a synchronizing power).
+pub const LIMIT_X_R: f64 = 5.0;
+
+/// Grid-forming with `limit.priority` = 1: how far beyond `I_max` (fraction) the request goes
+/// before its direction has turned fully to the virtual impedance's (linearly from `I_max`, so
+/// that the current stays continuous where the limit starts to act).
+pub const LIMIT_BAND: f64 = 0.05;
+
 /// What a limiter did to one current reference.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Limited {
@@ -66,6 +76,27 @@ pub fn saturate_forming(
         current_limit,
         dc_limit,
     }
+}
+
+/// Grid-forming, reactive current in dips (`limit.priority` = 1): a request `wanted` whose
+/// magnitude is `request` times `I_max` (> 1: the limit acts) turned, keeping its magnitude,
+/// toward the direction of `ev/(1 + j LIMIT_X_R)`, `ev = E - V` the voltage from the bus to the
+/// internal voltage, by the weight `(request - 1)/LIMIT_BAND` (at most 1). The output stage then
+/// holds its magnitude at `I_max` in the turned direction. Unchanged at or below `I_max`, or
+/// with no voltage across (`ev` = 0).
+pub fn turn_reactive(wanted: Complex<f64>, request: f64, ev: Complex<f64>) -> Complex<f64> {
+    let (n_w, n_ev) = (dvpp_math::cabs(wanted), dvpp_math::cabs(ev));
+    if request <= 1.0 || n_w == 0.0 || n_ev == 0.0 {
+        return wanted;
+    }
+    let w = ((request - 1.0) / LIMIT_BAND).min(1.0);
+    let z = ev / Complex::new(1.0, LIMIT_X_R);
+    let dir = wanted / n_w * (1.0 - w) + z / dvpp_math::cabs(z) * w;
+    let n_dir = dvpp_math::cabs(dir);
+    if n_dir == 0.0 {
+        return wanted;
+    }
+    dir * (n_w / n_dir)
 }
 
 /// Grid-following current limit: active part within the dc budget, then `|i| <= I_max` with the
@@ -172,6 +203,27 @@ mod tests {
         let l = saturate_forming(Complex::new(0.8, 0.0) * u, u, 0.9, 1.2, (-1.0, 0.09));
         assert!(l.dc_limit);
         assert!(((l.current * u.conj()).re * 0.9 - 0.09).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_limited_forming_request_turns_to_reactive_current() {
+        // In a dip the voltage across the internal node is in phase with the bus: the request
+        // at twice I_max turns fully to the virtual impedance's lagging current, its magnitude
+        // kept.
+        let u = dvpp_math::cpolar(0.5, 0.2);
+        let ev = u * 1.2;
+        let wanted = Complex::new(2.0, -0.6) * (u / 0.5);
+        let turned = turn_reactive(wanted, 2.0, ev);
+        assert!((dvpp_math::cabs(turned) - dvpp_math::cabs(wanted)).abs() < 1e-12);
+        let local = turned * (u / 0.5).conj();
+        let lag = -dvpp_math::atan2(local.im, local.re);
+        assert!((lag - dvpp_math::atan(LIMIT_X_R)).abs() < 1e-12, "{lag}");
+        // At the limit's edge nothing turns; halfway through the band halfway.
+        assert_eq!(turn_reactive(wanted, 1.0, ev), wanted);
+        assert_eq!(turn_reactive(wanted, 0.7, ev), wanted);
+        let half = turn_reactive(wanted, 1.0 + LIMIT_BAND / 2.0, ev);
+        let a = |x: Complex<f64>| dvpp_math::carg(x * (u / 0.5).conj());
+        assert!(a(half) < a(wanted) && a(half) > a(turned), "{}", a(half));
     }
 
     #[test]

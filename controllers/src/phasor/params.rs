@@ -5,7 +5,11 @@ use crate::layer::TDesParams;
 use crate::{positive, AdpfParams, DcLinkParams, Error, Mode, PllParams, Rating, SourceParams};
 use serde::{Deserialize, Serialize};
 
-/// Which current a grid-following unit keeps first at `I_max` (`limit.priority`).
+/// Which current a unit keeps first at `I_max` (`limit.priority`). Grid-following: the component
+/// kept first. Grid-forming: `Active` keeps the request's direction (the active current the
+/// voltage behind the virtual resistance asks for in a dip), `Reactive` turns a request beyond
+/// `I_max` to the direction of a virtual impedance (`limits::turn_reactive`): reactive current
+/// in dips (the phasor counterpart of a virtual-impedance current limit).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Priority {
     /// `limit.priority` = 0: the active current (frequency support).

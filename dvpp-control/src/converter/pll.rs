@@ -51,6 +51,15 @@ impl Pll {
         v.to_dq(self.theta)
     }
 
+    /// Hold: no sample of the voltage (it is too low to be measured, as in a fault); the frame
+    /// turns on at the frequency the integral holds, `ω_b + k_i ∫e`, for `h` seconds, and the
+    /// proportional path's contribution is dropped.
+    pub fn hold(&mut self, h: f64) {
+        self.delta_omega = self.integral;
+        self.theta = (self.theta + (self.omega_b + self.delta_omega) * h)
+            .rem_euclid(2.0 * std::f64::consts::PI);
+    }
+
     /// Take one sample of the voltage and advance the angle over `h` seconds.
     pub fn step(&mut self, v: Abc, h: f64) {
         let dq = self.frame(v);
@@ -88,5 +97,29 @@ mod tests {
         assert!((pll.delta_f() - df).abs() < 1e-5, "{}", pll.delta_f());
         let v = Dq { d: 1.0, q: 0.0 }.to_abc(wb * (1.0 + df) * t + phase);
         assert!(pll.frame(v).q.abs() < 1e-3, "{:?}", pll.frame(v));
+    }
+
+    /// Held, the PLL turns on at the frequency its integral had, whatever the voltage; sampled
+    /// again it locks as before.
+    #[test]
+    fn holds_its_frequency() {
+        let (wb, h) = (2.0 * PI * 50.0, 50e-6);
+        let mut pll = Pll::new(60.0, 240.0, wb, 0.0);
+        let df = 0.004;
+        let mut t = 0.0;
+        for _ in 0..(6.0 / h) as usize {
+            pll.step(Dq { d: 1.0, q: 0.0 }.to_abc(wb * (1.0 + df) * t), h);
+            t += h;
+        }
+        let held = pll.delta_f();
+        let theta = pll.theta();
+        for _ in 0..2000 {
+            pll.hold(h);
+        }
+        // The proportional path's share (of a locked PLL's, ~1e-11 pu) is dropped.
+        assert!((pll.delta_f() - held).abs() < 1e-9, "{}", pll.delta_f());
+        let turned = (pll.theta() - theta).rem_euclid(2.0 * PI);
+        let expected = (wb * (1.0 + pll.delta_f()) * 2000.0 * h).rem_euclid(2.0 * PI);
+        assert!((turned - expected).abs() < 1e-9, "{turned} {expected}");
     }
 }

@@ -154,6 +154,7 @@ impl Grid {
                 &self.case,
                 &self.branches,
                 &self.load_y,
+                self.fault_shunt(),
                 &self.injections(),
             )?);
         }

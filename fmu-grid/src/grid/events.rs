@@ -145,6 +145,9 @@ impl Grid {
             self.events[i].fired = true;
             changed = true;
         }
+        if self.switch_fault() {
+            changed = true;
+        }
         if changed {
             self.net = None;
             self.resolve()?;
@@ -152,13 +155,15 @@ impl Grid {
         Ok(())
     }
 
-    /// Time of the next enabled event that has not fired yet (infinite if none).
+    /// Time of the next enabled event that has not fired yet, or of the fault's next switching
+    /// (infinite if none).
     pub(crate) fn next_event_time(&self) -> f64 {
         self.events
             .iter()
             .filter(|e| e.enabled && !e.fired && e.event.time() > self.t + EVENT_EPS)
             .map(|e| e.event.time())
             .fold(f64::INFINITY, f64::min)
+            .min(self.next_fault_time())
     }
 }
 

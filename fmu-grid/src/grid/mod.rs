@@ -10,6 +10,7 @@
 
 mod dynamics;
 pub mod events;
+pub mod fault;
 mod outputs;
 pub mod snapshot;
 
@@ -19,6 +20,8 @@ pub use crate::integration::MAX_INTERNAL_STEP;
 pub use crate::network::CONST_POWER_V_MIN;
 use events::UflsState;
 pub use events::{EventOverride, EventState};
+use fault::FaultRt;
+pub use fault::{BusFault, FaultOutput};
 pub use outputs::{DerOutput, MachineOutput, Outputs, PccOutput};
 
 use crate::case::{BranchData, Case, DerKind, LoadModel};
@@ -140,6 +143,8 @@ pub struct Grid {
     /// Unwrapped bus angle of each POC, rad.
     poc_angle: Vec<f64>,
     events: Vec<EventState>,
+    /// The balanced bus fault, when one is set ([`Grid::set_fault`]).
+    fault: Option<FaultRt>,
     pf: PowerFlow,
     /// Internal integration step in use, and the largest the case's time constants allow.
     h_max: f64,
@@ -348,6 +353,7 @@ impl Grid {
             pcc_angle,
             poc_angle,
             events,
+            fault: None,
             pf,
             h_max: h_limit,
             h_limit,

@@ -89,6 +89,8 @@ pub struct Outputs {
     pub loss_p: f64,
     /// gen_p − load_p − loss_p (zero up to the network tolerance).
     pub balance_p: f64,
+    /// The bus fault's current and its bus voltage (all zero without a fault).
+    pub fault: super::FaultOutput,
 }
 
 impl Grid {
@@ -173,6 +175,10 @@ impl Grid {
                 load += s.g * self.sol.v[i].norm_sqr();
             }
         }
+        // A bus fault is a shunt too: its resistance's power while it is on.
+        if let Some((i, y)) = self.fault_shunt() {
+            load += y.re * self.sol.v[i].norm_sqr();
+        }
         let mut loss = 0.0;
         for br in self.branches.iter().filter(|b| b.in_service) {
             let (sf, st) = self.branch_flows(br);
@@ -249,6 +255,7 @@ impl Grid {
         out.load_p = load;
         out.loss_p = loss;
         out.balance_p = gen - load - loss;
+        out.fault = self.fault_output();
         out
     }
 

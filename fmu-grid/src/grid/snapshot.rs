@@ -1,6 +1,7 @@
 //! Serialization of a [`Grid`] (FMU states): the case as TOML text plus the evolving state.
 
 use super::events::{EventState, UflsState};
+use super::fault::FaultRt;
 use crate::case::{Case, Event};
 use crate::grid::{DerInput, Grid, SlotLimit};
 use crate::powerflow::C64;
@@ -31,6 +32,7 @@ struct GridSnapshot {
     poc_angle: Vec<f64>,
     h_max: f64,
     ufls: Vec<UflsState>,
+    fault: Option<FaultRt>,
 }
 
 /// `[[event]]` tables of a snapshot.
@@ -63,6 +65,7 @@ impl GridSnapshot {
             poc_angle: g.poc_angle.clone(),
             h_max: g.h_max,
             ufls: g.ufls.clone(),
+            fault: g.fault.clone(),
         })
     }
 
@@ -122,6 +125,7 @@ impl GridSnapshot {
         g.poc_angle = self.poc_angle;
         g.h_max = self.h_max;
         g.ufls = self.ufls;
+        g.fault = self.fault;
         g.net = None;
         Ok(g)
     }

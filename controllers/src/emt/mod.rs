@@ -54,6 +54,16 @@ const HINF_LOOKAHEAD: f64 = 2.0;
 /// error at the hand-back, which made the 20° jump hand over again for a second).
 const HINF_HOLD: f64 = 0.05;
 
+/// Option B's current limit: a handover that comes within [`HINF_REARM`] s of the last hand-back
+/// is a quick one; from the second quick one in a row on, the hold doubles with each (up to
+/// [`HINF_HOLD_MAX`]), and a run of the state feedback longer than `HINF_REARM` starts again
+/// from [`HINF_HOLD`]. Where the state feedback's transient after each hand-back takes the
+/// current back to the limit (its frame's kick), the unit thus stays longer in option A's mode
+/// each time instead of switching back and forth; one quick handover (the 20° jump of
+/// docs/hinf.md §9) keeps the short hold.
+const HINF_REARM: f64 = 1.0;
+const HINF_HOLD_MAX: f64 = 1.6;
+
 /// Option B's current limit: time constant (s) with which the reactive error left at the
 /// hand-back fades from the state feedback's reference, so that the feedback takes up the
 /// reference model's output over about this time instead of within its own 30 ms (the fast
@@ -172,6 +182,11 @@ pub struct EmtUnit {
     /// state feedback) runs, and for how long (s) no limit has acted in it.
     hinf_limited: bool,
     hinf_clear: f64,
+    /// Option B: the hold the present limited mode needs (s), how many quick handovers came in
+    /// a row, and how long the state feedback has run since the last hand-back (s).
+    hinf_hold: f64,
+    hinf_quick: u32,
+    hinf_free: f64,
     /// Option B: the converter current's magnitude at the previous sample.
     hinf_i_prev: f64,
     /// Option B: the reactive error left at the hand-back (pu on S_rated), added to the
@@ -331,6 +346,9 @@ impl EmtUnit {
             hinf,
             hinf_limited: false,
             hinf_clear: 0.0,
+            hinf_hold: HINF_HOLD,
+            hinf_quick: 0,
+            hinf_free: HINF_REARM,
             hinf_i_prev: fm.i_f.norm(),
             hinf_q_offset: 0.0,
             pll,
@@ -515,6 +533,16 @@ impl EmtUnit {
                         if !self.hinf_limited && i_ahead > p.inner.i_max {
                             self.hinf_limited = true;
                             self.hinf_clear = 0.0;
+                            if self.hinf_free < HINF_REARM {
+                                self.hinf_quick += 1;
+                            } else {
+                                self.hinf_quick = 0;
+                            }
+                            self.hinf_hold = if self.hinf_quick >= 2 {
+                                (2.0 * self.hinf_hold).min(HINF_HOLD_MAX)
+                            } else {
+                                HINF_HOLD
+                            };
                             self.hinf_q_offset = 0.0;
                             let e = self.q_ref - q;
                             self.e_int = behind_virtual(&p, &fm).d
@@ -543,8 +571,9 @@ impl EmtUnit {
                                  cascade)",
                                 p.inner.i_max
                             )));
-                        } else if self.hinf_limited && self.hinf_clear >= HINF_HOLD {
+                        } else if self.hinf_limited && self.hinf_clear >= self.hinf_hold {
                             self.hinf_limited = false;
+                            self.hinf_free = 0.0;
                             self.hinf_q_offset = (q - self.q_ref) / to_base;
                             hl.resume(
                                 &fm,
@@ -553,8 +582,9 @@ impl EmtUnit {
                                 self.vq.mu_q(),
                             );
                             notices.push(Notice::Event(format!(
-                                "option B: no limit for {HINF_HOLD} s at t = {t} s: the \
-                                 H-infinity state feedback takes over again"
+                                "option B: no limit for {} s at t = {t} s: the H-infinity \
+                                 state feedback takes over again",
+                                self.hinf_hold
                             )));
                         }
                         if self.hinf_limited {
@@ -586,6 +616,9 @@ impl EmtUnit {
                                 h,
                             );
                             self.e = behind_virtual(&p, &fm).d;
+                            if self.hinf_free < HINF_REARM {
+                                self.hinf_free += h;
+                            }
                             if self.hinf_q_offset != 0.0 {
                                 self.hinf_q_offset *= dvpp_math::exp(-h / HINF_REENTRY_TAU);
                                 if self.hinf_q_offset.abs() < 1e-15 {

@@ -20,7 +20,10 @@ fn root() -> PathBuf {
 }
 
 fn rows(control: Control) -> Vec<Row> {
-    let mine: Vec<_> = jobs().into_iter().filter(|j| j.control == control).collect();
+    let mine: Vec<_> = jobs()
+        .into_iter()
+        .filter(|j| j.control == control)
+        .collect();
     let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
     run_all(&root(), mine, workers, None).unwrap_or_else(|e| panic!("{e}"))
 }

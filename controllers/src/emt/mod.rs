@@ -39,10 +39,37 @@ use std::f64::consts::PI;
 /// taken as empty and the modulation saturates rather than divide by zero.
 const V_DC_FLOOR: f64 = 0.05;
 
-/// Option B's trip: the converter current (pu of the rated peak) beyond which a unit running the
-/// H∞ state feedback, which has no current limit of its own, stops with an error, in units of
-/// `I_max`.
-const HINF_TRIP: f64 = 1.5;
+/// Option B's current limit (docs/hinf.md §8.5): the H∞ state feedback hands over to option A's
+/// current-limited cascade when the converter current, extrapolated this many samples ahead from
+/// its last change, reaches `I_max`. The command computed now is applied from the next step on,
+/// held over it: the current the handover can first act on is about two samples ahead (measured:
+/// in a 30 % dip the current rises 0.05 pu per sample; handing over when the current itself
+/// reached `I_max` let it peak at 1.30 pu, two samples ahead at 1.22 pu).
+const HINF_LOOKAHEAD: f64 = 2.0;
+
+/// Option B's current limit: how long (s) the current-limited mode must have run with no limit
+/// acting (the current reference not at `I_max`, the modulation not limited, `E` within
+/// `(0, E_max)`, the converter current below `I_max`) before the state feedback takes over
+/// again (measured: 0.1 s left the unit in option A's mode longer and with a larger reactive
+/// error at the hand-back, which made the 20° jump hand over again for a second).
+const HINF_HOLD: f64 = 0.05;
+
+/// Option B's current limit: a handover that comes within [`HINF_REARM`] s of the last hand-back
+/// is a quick one; from the second quick one in a row on, the hold doubles with each (up to
+/// [`HINF_HOLD_MAX`]), and a run of the state feedback longer than `HINF_REARM` starts again
+/// from [`HINF_HOLD`]. Where the state feedback's transient after each hand-back takes the
+/// current back to the limit (its frame's kick), the unit thus stays longer in option A's mode
+/// each time instead of switching back and forth; one quick handover (the 20° jump of
+/// docs/hinf.md §9) keeps the short hold.
+const HINF_REARM: f64 = 1.0;
+const HINF_HOLD_MAX: f64 = 1.6;
+
+/// Option B's current limit: time constant (s) with which the reactive error left at the
+/// hand-back fades from the state feedback's reference, so that the feedback takes up the
+/// reference model's output over about this time instead of within its own 30 ms (the fast
+/// correction kicks the frame, by 2.6 pu of p per pu of q on S_base at μ = 1, and with the
+/// error taken up at once the 30 % dip handed over twice more).
+const HINF_REENTRY_TAU: f64 = 0.1;
 
 /// Grid-following: time constant (s) of the voltages the current reference is computed from.
 /// The reference taken from the instantaneous voltages closes a loop through the LCL resonance
@@ -164,7 +191,8 @@ pub struct EmtCommand {
     pub p_avail: f64,
     /// Magnitude of the converter-side current (pu of the rated current).
     pub i_ac: f64,
-    /// Option A: the current reference is held at `I_max`; option B: the current is beyond it.
+    /// Option A: the current reference is held at `I_max`; option B: its current-limited mode
+    /// (option A's cascade) runs.
     pub limit_current: bool,
     /// The converter voltage is held at the modulation limit.
     pub limit_modulation: bool,
@@ -190,6 +218,20 @@ pub struct EmtUnit {
     design: InnerDesign,
     /// Grid-forming with option B: the state feedback in place of the q PI and the inner loops.
     hinf: Option<HinfLoop>,
+    /// Option B: the current-limited mode (option A's q PI and inner loops in place of the
+    /// state feedback) runs, and for how long (s) no limit has acted in it.
+    hinf_limited: bool,
+    hinf_clear: f64,
+    /// Option B: the hold the present limited mode needs (s), how many quick handovers came in
+    /// a row, and how long the state feedback has run since the last hand-back (s).
+    hinf_hold: f64,
+    hinf_quick: u32,
+    hinf_free: f64,
+    /// Option B: the converter current's magnitude at the previous sample.
+    hinf_i_prev: f64,
+    /// Option B: the reactive error left at the hand-back (pu on S_rated), added to the
+    /// state feedback's reference and fading.
+    hinf_q_offset: f64,
     /// Grid-following: the PLL on the grid-side voltage.
     pll: Option<Pll>,
     /// Grid-forming: the frame's angle beyond `ω_b t` (rad).
@@ -359,6 +401,13 @@ impl EmtUnit {
             inner,
             design,
             hinf,
+            hinf_limited: false,
+            hinf_clear: 0.0,
+            hinf_hold: HINF_HOLD,
+            hinf_quick: 0,
+            hinf_free: HINF_REARM,
+            hinf_i_prev: fm.i_f.norm(),
+            hinf_q_offset: 0.0,
             pll,
             theta: rho,
             df: 0.0,
@@ -598,29 +647,113 @@ impl EmtUnit {
                 // the q PI sets E.
                 let b = match self.hinf.as_mut() {
                     Some(hl) => {
-                        // Option B has no current limit: beyond HINF_TRIP · I_max the unit trips
-                        // rather than run a converter far past its rating.
+                        // Option B's current limit (docs/hinf.md §8.5): when the converter
+                        // current is about to pass I_max the unit hands over to option A's
+                        // current-limited cascade, the q PI at the present E and both loops'
+                        // integrals at their steady-state values for the present capacitor
+                        // voltage and grid current; it takes back when no limit has acted for
+                        // HINF_HOLD, the state feedback's integrals set so that its first
+                        // command repeats the last one.
                         let i_f = fm.i_f.norm();
-                        let trip = HINF_TRIP * p.inner.i_max;
-                        if i_f > trip {
-                            return Err(Error::unit(format!(
-                                "option B (inner.kind = 1) has no current limit: the converter \
-                                 current reached {i_f:.3} pu at t = {t} s, beyond {HINF_TRIP} \
-                                 I_max = {trip:.3} pu; the unit trips (docs/hinf.md §8)"
+                        let i_ahead = i_f + HINF_LOOKAHEAD * (i_f - self.hinf_i_prev).max(0.0);
+                        self.hinf_i_prev = i_f;
+                        if !self.hinf_limited && i_ahead > p.inner.i_max {
+                            self.hinf_limited = true;
+                            self.hinf_clear = 0.0;
+                            if self.hinf_free < HINF_REARM {
+                                self.hinf_quick += 1;
+                            } else {
+                                self.hinf_quick = 0;
+                            }
+                            self.hinf_hold = if self.hinf_quick >= 2 {
+                                (2.0 * self.hinf_hold).min(HINF_HOLD_MAX)
+                            } else {
+                                HINF_HOLD
+                            };
+                            self.hinf_q_offset = 0.0;
+                            let e = self.q_ref - q;
+                            self.e_int = behind_virtual(&p, &fm).d
+                                - self.e0
+                                - p.qpi.kp * e
+                                - p.qpi.ki * e * h;
+                            // The steady state at the present v_c and i_g: i_f = i_g + jωC_f v_c
+                            // (the voltage loop's integral zero) and v_m = v_c + (R_f + jωL_f) i_f
+                            // (the current loop's R_f i_f). Settled to the measured i_f and the
+                            // last command instead, the integrals kept the transient's
+                            // C_f dv_c/dt and L_f di_f/dt: the current rose on to 1.47 pu in the
+                            // 30 % dip and stayed at I_max for a second after it.
+                            let data = p.converter_data();
+                            let steady = FilterMeasurement {
+                                i_f: fm.i_g + fm.v_c.rot90() * (omega * data.c_f),
+                                ..fm
+                            };
+                            self.inner.settle(
+                                &steady,
+                                HinfLoop::steady_voltage(&data, &steady, omega),
+                                omega,
+                            );
+                            notices.push(Notice::Event(format!(
+                                "option B: the converter current reached {i_f:.3} pu \
+                                 (I_max {}) at t = {t} s: current-limited mode (option A's \
+                                 cascade)",
+                                p.inner.i_max
+                            )));
+                        } else if self.hinf_limited && self.hinf_clear >= self.hinf_hold {
+                            self.hinf_limited = false;
+                            self.hinf_free = 0.0;
+                            self.hinf_q_offset = (q - self.q_ref) / to_base;
+                            hl.resume(
+                                &fm,
+                                self.v_m,
+                                (self.q_ref - self.q0) / to_base + self.hinf_q_offset,
+                                self.vq.mu_q(),
+                            );
+                            notices.push(Notice::Event(format!(
+                                "option B: no limit for {} s at t = {t} s: the H-infinity \
+                                 state feedback takes over again",
+                                self.hinf_hold
                             )));
                         }
-                        let v = hl.step(
-                            &fm,
-                            (q - self.q0) / to_base,
-                            (self.q_ref - self.q0) / to_base,
-                            self.vq.mu_q(),
-                            self.df,
-                            v_m_max,
-                            omega_b,
-                            h,
-                        );
-                        self.e = behind_virtual(&p, &fm).d;
-                        Some(v)
+                        if self.hinf_limited {
+                            self.e = layer::voltage_matching(
+                                &mut self.e_int,
+                                self.q_ref,
+                                q,
+                                self.e0,
+                                p.qpi.kp,
+                                p.qpi.ki,
+                                p.qpi.e_max,
+                                h,
+                            );
+                            None
+                        } else {
+                            // The reference, plus what is left of the error at the hand-back.
+                            let mut dq_ref = (self.q_ref - self.q0) / to_base;
+                            if self.hinf_q_offset != 0.0 {
+                                dq_ref += self.hinf_q_offset;
+                            }
+                            let v = hl.step(
+                                &fm,
+                                (q - self.q0) / to_base,
+                                dq_ref,
+                                self.vq.mu_q(),
+                                self.df,
+                                v_m_max,
+                                omega_b,
+                                h,
+                            );
+                            self.e = behind_virtual(&p, &fm).d;
+                            if self.hinf_free < HINF_REARM {
+                                self.hinf_free += h;
+                            }
+                            if self.hinf_q_offset != 0.0 {
+                                self.hinf_q_offset *= dvpp_math::exp(-h / HINF_REENTRY_TAU);
+                                if self.hinf_q_offset.abs() < 1e-15 {
+                                    self.hinf_q_offset = 0.0;
+                                }
+                            }
+                            Some(v)
+                        }
                     }
                     None => {
                         // While limited the q PI's integral holds (the reactive power follows
@@ -654,6 +787,14 @@ impl EmtUnit {
                     let e = Dq { d: self.e, q: 0.0 };
                     self.inner.step(&fm, v_ref, e, omega, v_m_max, h)
                 });
+                if self.hinf_limited {
+                    let clear = !(self.inner.current_limited()
+                        || self.inner.modulation_limited()
+                        || self.e <= 0.0
+                        || self.e >= p.qpi.e_max
+                        || fm.i_f.norm() > p.inner.i_max);
+                    self.hinf_clear = if clear { self.hinf_clear + h } else { 0.0 };
+                }
                 (v_m, df, false)
             }
             PfReference::Following(fp) => {
@@ -824,14 +965,14 @@ impl EmtUnit {
             p_avail: p.source.available(t + h),
             i_ac,
             limit_current: match self.hinf {
-                // Option B does not limit its current: the flag says it is beyond I_max.
-                Some(_) => i_ac > p.inner.i_max,
+                // Option B: the current-limited mode runs.
+                Some(_) => self.hinf_limited,
                 None => reference_limited || self.inner.current_limited() || self.tvi_active,
             },
-            limit_modulation: self.hinf.as_ref().map_or(
-                self.inner.modulation_limited(),
-                HinfLoop::modulation_limited,
-            ),
+            limit_modulation: match &self.hinf {
+                Some(hl) if !self.hinf_limited => hl.modulation_limited(),
+                _ => self.inner.modulation_limited(),
+            },
             limit_source: source,
             notices,
         })

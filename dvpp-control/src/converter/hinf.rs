@@ -25,6 +25,10 @@ use super::hinf_gains::{K_MU_MAX, K_MU_MIN, K_Q, MU_MAX, MU_MIN, N_INPUTS, N_STA
 use super::inner::FilterMeasurement;
 use serde::{Deserialize, Serialize};
 
+/// The places of the two integrals `ξ_q`, `ξ_w` in the state.
+const XI_Q: usize = 9;
+const XI_W: usize = 10;
+
 /// `K(μ)`: the vertex gains interpolated linearly, `mu` clamped to the design's range.
 pub fn gain(mu: f64) -> [[f64; N_STATES]; N_INPUTS] {
     let l = ((mu - MU_MIN) / (MU_MAX - MU_MIN)).clamp(0.0, 1.0);
@@ -90,6 +94,48 @@ impl HinfLoop {
         self.modulation_limited
     }
 
+    /// Take over again, bumplessly, from a controller that ran in its place (option B's
+    /// current-limited mode, docs/hinf.md §8.5): the operating point stays, `v_m` (the command
+    /// of the previous sample, which the plant applies now) becomes the loop's previous command,
+    /// and the two integrals are set so that the next [`HinfLoop::step`] with the same `m`,
+    /// `dq_ref` and `mu_q` returns `v_m` again: `K_ξ ξ = v_m - v_m0 - K_x x`, `K_ξ` the gain's
+    /// 2×2 block on the integrals (invertible over the design's range: its determinant is 0.90
+    /// at `MU_MIN` and 1.35 at `MU_MAX`). Those are the integrals the loop would hold in a
+    /// steady state at this point, so the loop resumes from where the other controller left
+    /// the converter rather than from where it handed over.
+    pub fn resume(&mut self, m: &FilterMeasurement, v_m: Dq, dq_ref: f64, mu_q: f64) {
+        self.v_m = v_m;
+        self.xi_q = 0.0;
+        self.xi_w = 0.0;
+        let x = self.state(m, dq_ref);
+        let k = gain(mu_q * self.k_ratio);
+        let dot = |row: &[f64; N_STATES]| row.iter().zip(&x).map(|(a, b)| a * b).sum::<f64>();
+        let r = v_m
+            - self.v_m0
+            - Dq {
+                d: dot(&k[0]),
+                q: dot(&k[1]),
+            };
+        let (a, b, c, d) = (k[0][XI_Q], k[0][XI_W], k[1][XI_Q], k[1][XI_W]);
+        let det = a * d - b * c;
+        self.xi_q = (d * r.d - b * r.q) / det;
+        self.xi_w = (a * r.q - c * r.d) / det;
+    }
+
+    /// The design's state `x` (the order of [`STATES`](super::hinf_gains::STATES)) at `m`.
+    fn state(&self, m: &FilterMeasurement, dq_ref: f64) -> [f64; N_STATES] {
+        let (di_f, dv_c, di_g) = (
+            m.i_f - self.x0.i_f,
+            m.v_c - self.x0.v_c,
+            m.i_g - self.x0.i_g,
+        );
+        let du = self.v_m - self.v_m0;
+        [
+            di_f.d, di_f.q, dv_c.d, dv_c.q, di_g.d, di_g.q, du.d, du.q, dq_ref, self.xi_q,
+            self.xi_w,
+        ]
+    }
+
     /// The converter voltage for this sample: `m` the filter measurement, `dq` and `dq_ref` the
     /// reactive power's and its reference's deviations (pu on the rating), `mu_q` the unit's
     /// reactive dc gain, `df` the frame's frequency deviation (pu), `v_m_max` the largest
@@ -106,16 +152,7 @@ impl HinfLoop {
         omega_b: f64,
         h: f64,
     ) -> Dq {
-        let (di_f, dv_c, di_g) = (
-            m.i_f - self.x0.i_f,
-            m.v_c - self.x0.v_c,
-            m.i_g - self.x0.i_g,
-        );
-        let du = self.v_m - self.v_m0;
-        let x = [
-            di_f.d, di_f.q, dv_c.d, dv_c.q, di_g.d, di_g.q, du.d, du.q, dq_ref, self.xi_q,
-            self.xi_w,
-        ];
+        let x = self.state(m, dq_ref);
         self.mu = mu_q * self.k_ratio;
         let k = gain(self.mu);
         let dot = |row: &[f64; N_STATES]| row.iter().zip(&x).map(|(a, b)| a * b).sum::<f64>();
@@ -159,6 +196,37 @@ mod tests {
         assert!(close(gain(MU_MAX + 5.0), K_MU_MAX));
         let mid = gain(0.5 * (MU_MIN + MU_MAX));
         assert!((mid[1][3] - 0.5 * (K_MU_MIN[1][3] + K_MU_MAX[1][3])).abs() < 1e-15);
+    }
+
+    /// After [`HinfLoop::resume`] the next sample's command is the one given, to rounding, at
+    /// either end of μ and in between, wherever the converter was left; and the integrals
+    /// resumed at the operating point itself are zero.
+    #[test]
+    fn resuming_repeats_the_command_given() {
+        use super::super::hinf_gains::STATES;
+        assert_eq!((STATES[XI_Q], STATES[XI_W]), ("xi_q", "xi_w"));
+        let dq = |v: [f64; 2]| Dq { d: v[0], q: v[1] };
+        let m0 = FilterMeasurement {
+            v_c: dq(V_C0),
+            i_f: dq(I_F0),
+            i_g: dq(I_G0),
+        };
+        let mut hl = HinfLoop::new(&m0, dq(V_M0), 0.3, K_Q, STABILIZER);
+        hl.resume(&m0, dq(V_M0), 0.0, 0.7);
+        assert_eq!((hl.xi_q, hl.xi_w), (0.0, 0.0));
+        // A converter left at 1.2 pu of current, a lower voltage, a turned command.
+        let m = FilterMeasurement {
+            v_c: dq([0.82, -0.11]),
+            i_f: dq([0.95, 0.73]),
+            i_g: dq([0.97, 0.64]),
+        };
+        let v_m = dq([0.91, 0.17]);
+        for mu_q in [0.0, 0.37, 1.0] {
+            hl.resume(&m, v_m, 0.31, mu_q);
+            let out = hl.step(&m, 0.05, 0.31, mu_q, 0.0, 1.5, 2.0 * PI * 50.0, 50e-6);
+            let err = (out - v_m).norm();
+            assert!(err < 1e-14, "mu_q {mu_q}: {err:e}");
+        }
     }
 
     /// The loop on the sampled filter against a stiff grid, at the design's operating point,

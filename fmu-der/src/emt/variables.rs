@@ -463,7 +463,7 @@ impl LimitFlags {
         let mut flag = |name: &str, desc: &str| v.boolean(Spec::boolean_output(name, desc));
         let current = flag(
             "limit.current",
-            "option A: the converter-current reference is held at I_max; option B (inner.kind = 1, no current limit): the converter current is beyond I_max",
+            "option A: the converter-current reference is held at I_max; option B (inner.kind = 1): its current-limited mode runs (option A's cascade in place of the H-infinity state feedback, from the converter current reaching I_max until no limit has acted for 50 ms: docs/hinf.md)",
         );
         let modulation = flag(
             "limit.modulation",

@@ -1,0 +1,316 @@
+//! Option B's current limit on the EMT plant's circuit: the grid-forming unit with option A and with option B on a Thevenin source of SCR 10 through a shallow and a deep dip, a phase jump, a frequency ramp and a three-phase fault at the PCC, its converter current within I_max and settled after each.
+//!
+//! The unit is the conformance test's generic 60 MVA grid-forming unit (the paper's filter and
+//! transformer, static ADPFs carrying the whole DVPP's T_des, μ_p = μ_q = 1, the default reactive
+//! droop `Tdes.Dq` = 0.01), feeding 0.3 pu of S_base into the source (X/R = 10) through its
+//! filter and transformer. With option B (the H∞ state feedback, docs/hinf.md) the unit used to
+//! trip at 1.5 `I_max` in each of these events; its current limit (§8.5) hands over to option A's
+//! cascade while the current needs limiting and back to the state feedback after.
+
+use dvpp_control::converter::{Abc, InnerDesign};
+use dvpp_controllers::emt::{
+    EmtCommand, EmtMeasurement, EmtParams, EmtUnit, FilterParams, InnerKind, QPiParams,
+};
+use dvpp_controllers::layer::TDesParams;
+use dvpp_controllers::{
+    AdpfChannel, AdpfKind, AdpfParams, ComplementParams, DcLinkParams, Mode, OperatorGains,
+    PllParams, Rating, SourceParams, MAX_LPF,
+};
+use emt_plant_model::Plant;
+use fmi_export::harness::Harness;
+use fmi_export::Status;
+
+/// The step (s).
+const H: f64 = 50e-6;
+/// The event's time (s) and the run's end (s).
+const T_EVENT: f64 = 0.3;
+const T_END: f64 = 2.0;
+/// How far the converter current (its dq magnitude) may pass I_max (fraction).
+const I_TOLERANCE: f64 = 0.05;
+
+/// The generic unit, grid-forming, with the v-q option `kind`.
+fn unit_params(kind: InnerKind) -> EmtParams {
+    let mode = Mode::GridForming;
+    let adpf = |channel, complement| AdpfParams {
+        channel,
+        kind: AdpfKind::Static,
+        tau: 1.0,
+        tau2: 0.1,
+        order: 1,
+        order2: 1,
+        complement,
+    };
+    EmtParams {
+        rating: Rating {
+            s_rated: 60.0,
+            s_base: 100.0,
+            s_dvpp: 96.0,
+            f_nom: 50.0,
+        },
+        mode,
+        tdes: TDesParams {
+            h: 5.55,
+            d: 33.33,
+            dq: 0.01,
+            tau_q: 0.01,
+        },
+        adpf_p: adpf(
+            AdpfChannel::P,
+            Some(ComplementParams {
+                share: 1.0,
+                n_lpf: 0,
+                lpf_tau: [1.0; MAX_LPF],
+                lpf_order: [1; MAX_LPF],
+            }),
+        ),
+        adpf_q: adpf(AdpfChannel::Q, None),
+        pll: PllParams {
+            kp: 60.0,
+            ki: 240.0,
+            tau: 1.0 / 60.0,
+            order: 2,
+        },
+        qpi: QPiParams {
+            kp: 0.05,
+            ki: 0.5,
+            e_max: 1.5,
+        },
+        vq_tau: match mode {
+            Mode::GridForming => 0.5,
+            Mode::GridFollowing => 2.0,
+        },
+        filter: FilterParams {
+            r_f: 0.01,
+            l_f: 0.11,
+            c_f: 0.0942,
+            r_t: 0.01,
+            l_t: 0.1,
+        },
+        vdc_ratio: 3.0,
+        vi_r: 0.3,
+        inner: InnerDesign::default(),
+        inner_kind: kind,
+        t_s: H,
+        dc: DcLinkParams {
+            tau_dc: 0.2,
+            c_dc: 0.096,
+            g_dc: 0.05,
+            k_dc: 100.0,
+            zeta: 0.7,
+        },
+        source: SourceParams {
+            storage: false,
+            deload: 1.0,
+            p_avail0: 0.6,
+            avail_t: 1.0,
+            avail_dp: 0.0,
+        },
+    }
+}
+
+const GAINS: OperatorGains = OperatorGains {
+    mu_p: 1.0,
+    mu_q: 1.0,
+    mu_p_lpf: [0.0; MAX_LPF],
+};
+
+fn measure(plant: &mut Harness<Plant>, t: f64) -> EmtMeasurement {
+    let mut three = |w: &str| {
+        let [a, b, c] = ["a", "b", "c"].map(|ph| plant.get(&format!("der[1].{w}_{ph}")));
+        Abc { a, b, c }
+    };
+    let (v_c, i_f, i_g) = (three("v"), three("i"), three("ig"));
+    EmtMeasurement {
+        t,
+        v_c,
+        i_f,
+        i_g,
+        v_dc: plant.get("der[1].v_dc"),
+    }
+}
+
+fn command(plant: &mut Harness<Plant>, c: &EmtCommand) {
+    for (ph, m) in ["a", "b", "c"].iter().zip(c.m_abc) {
+        plant.set(&format!("der[1].m_{ph}"), m);
+    }
+    plant.set("der[1].i_dc_ref", c.i_dc_ref);
+    plant.set("der[1].p_src_min", c.p_src_min);
+    plant.set("der[1].p_src_max", c.p_src_max);
+}
+
+/// One event of the bench: its name and the plant's parameters that make it at `T_EVENT`.
+struct Event {
+    name: &'static str,
+    plant: &'static [(&'static str, f64)],
+}
+
+/// The frequency ramp that leaves the source beyond what the unit's rating can answer.
+const LONG_RAMP: &str = "-5 Hz/s for 0.2 s, then held";
+
+const EVENTS: [Event; 6] = [
+    Event {
+        name: "dip to 0.9 pu for 150 ms",
+        plant: &[("thevenin.dip", 0.1), ("thevenin.dip_duration", 0.15)],
+    },
+    Event {
+        name: "dip to 0.7 pu for 150 ms",
+        plant: &[("thevenin.dip", 0.3), ("thevenin.dip_duration", 0.15)],
+    },
+    Event {
+        name: "25° phase jump",
+        plant: &[("thevenin.jump", 25.0 * std::f64::consts::PI / 180.0)],
+    },
+    Event {
+        name: "-5 Hz/s for 0.06 s, then held",
+        plant: &[("thevenin.rocof", -5.0), ("thevenin.rocof_duration", 0.06)],
+    },
+    Event {
+        name: LONG_RAMP,
+        plant: &[("thevenin.rocof", -5.0), ("thevenin.rocof_duration", 0.2)],
+    },
+    Event {
+        name: "three-phase fault at the PCC, 0.15 s",
+        plant: &[
+            ("fault.type", 1.0),
+            ("fault.X", 0.05),
+            ("fault.duration", 0.15),
+        ],
+    },
+];
+
+/// What a run shows.
+#[derive(Debug, Default)]
+struct Run {
+    /// Largest converter current (dq magnitude, pu of the rated peak) over the run.
+    i_peak: f64,
+    /// How often `limit.current` rose, and the samples it was set.
+    handovers: usize,
+    limited: usize,
+    /// Over the last 0.5 s: whether `limit.current` was set, the largest `|p - p_end|`,
+    /// `|q - q_ref|` (pu on S_base).
+    limited_at_end: bool,
+    p_swing: f64,
+    q_err: f64,
+}
+
+/// The unit with `kind` on the source of SCR 10 through `e`.
+fn run(kind: InnerKind, e: &Event) -> Run {
+    let params = unit_params(kind);
+    let toml = "[model]\ncase = \"island\"\nthevenin = true\nunits = [{ name = \"unit\", s_rated = 60.0, tau_dc = 0.2, p0 = 0.3 }]\nloads = []\n";
+    let mut plant = Harness::<Plant>::from_toml(toml);
+    assert_eq!(plant.setup_experiment(0.0, None), Status::Ok);
+    let f = params.filter;
+    for (name, value) in [
+        ("R_f", f.r_f),
+        ("L_f", f.l_f),
+        ("C_f", f.c_f),
+        ("R_t", f.r_t),
+        ("L_t", f.l_t),
+        ("C_dc", params.dc.c_dc),
+        ("G_dc", params.dc.g_dc),
+        ("tau_dc", params.dc.tau_dc),
+    ] {
+        plant.set(&format!("der[1].{name}"), value);
+    }
+    let x = params.rating.s_base / (params.rating.s_rated * 10.0);
+    plant.set("thevenin.X", x);
+    plant.set("thevenin.R", x / 10.0);
+    for time in [
+        "thevenin.dip_t",
+        "thevenin.jump_t",
+        "thevenin.rocof_t",
+        "fault.t",
+    ] {
+        plant.set(time, T_EVENT);
+    }
+    for (name, value) in e.plant {
+        if *name == "fault.type" {
+            plant.set(name, *value as i32);
+        } else {
+            plant.set(name, *value);
+        }
+    }
+    assert_eq!(plant.enter_initialization_mode(), Status::Ok);
+    assert_eq!(
+        plant.exit_initialization_mode(),
+        Status::Ok,
+        "{}: {:?}",
+        e.name,
+        plant.log()
+    );
+    let (mut unit, mut cmd) =
+        EmtUnit::initialize(&params, &measure(&mut plant, 0.0), &GAINS).expect("initialize");
+    let mut out = Run::default();
+    let mut tail = vec![];
+    let n = (T_END / H).round() as usize;
+    for k in 0..n {
+        let t = k as f64 * H;
+        command(&mut plant, &cmd);
+        let m = measure(&mut plant, t);
+        let was = cmd.limit_current;
+        cmd = unit
+            .step(&m, &GAINS, H)
+            .unwrap_or_else(|err| panic!("{} ({kind:?}): t = {t}: {err}", e.name));
+        assert_eq!(plant.do_step(t, H), Status::Ok, "{}: plant at {t}", e.name);
+        out.i_peak = out.i_peak.max(cmd.i_ac);
+        out.handovers += usize::from(cmd.limit_current && !was);
+        out.limited += usize::from(cmd.limit_current);
+        if t >= T_END - 0.5 {
+            out.limited_at_end |= cmd.limit_current;
+            tail.push((cmd.p, cmd.q - cmd.q_ref));
+        }
+    }
+    let p_end = tail.last().unwrap().0;
+    out.p_swing = tail
+        .iter()
+        .map(|(p, _)| (p - p_end).abs())
+        .fold(0.0, f64::max);
+    out.q_err = tail.iter().map(|(_, q)| q.abs()).fold(0.0, f64::max);
+    println!(
+        "{} ({kind:?}): largest |i_f| {:.4} pu; {} handovers, {:.3} s limited; over the last 0.5 s limited {}, |p - p_end| <= {:.1e} pu, |q - q_ref| <= {:.1e} pu",
+        e.name,
+        out.i_peak,
+        out.handovers,
+        out.limited as f64 * H,
+        out.limited_at_end,
+        out.p_swing,
+        out.q_err
+    );
+    out
+}
+
+/// Both options through each event on SCR 10 without an error, the converter current within
+/// I_max to 5 % (option B's largest: 1.2533 pu in the fault, 1.2507 pu in the deep dip, the
+/// two samples of delay at its handover; option A's 1.2379 pu in the fault). Option B is back on
+/// its state feedback after one handover at most, and over the last 0.5 s tracking and settled:
+/// `|q - q_ref|` below 5e-3 pu, the frame's swing `|p - p_end|` below 0.02 pu (measured at most
+/// 2.2e-3 and 1.5e-2 pu, after the short ramp; option A's q PI and frame are slower: 0.13 to 0.31
+/// pu of swing left at 2 s, printed, not asserted). The 25° jump does not reach option B's limit
+/// on this grid (1.165 pu). After the long ramp the source stays 1 Hz low, where
+/// the droop asks more than the rating: both options stay at their current limit.
+#[test]
+fn both_options_ride_through_the_bench_events_within_the_current_limit() {
+    let i_max = InnerDesign::default().i_max;
+    for e in &EVENTS {
+        let held_beyond_rating = e.name == LONG_RAMP;
+        for kind in [InnerKind::OptionA, InnerKind::OptionB] {
+            let r = run(kind, e);
+            assert!(
+                r.i_peak <= i_max * (1.0 + I_TOLERANCE),
+                "{} ({kind:?}): {}",
+                e.name,
+                r.i_peak
+            );
+            assert_eq!(
+                r.limited_at_end, held_beyond_rating,
+                "{} ({kind:?}): limited at the end",
+                e.name
+            );
+            if kind == InnerKind::OptionB && !held_beyond_rating {
+                assert!(r.handovers <= 1, "{}: {}", e.name, r.handovers);
+                assert!(r.q_err < 5e-3, "{}: |q - q_ref| {}", e.name, r.q_err);
+                assert!(r.p_swing < 0.02, "{}: |p - p_end| {}", e.name, r.p_swing);
+            }
+        }
+    }
+}

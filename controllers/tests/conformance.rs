@@ -8,20 +8,16 @@
 //! The same files are replayed through the `dvpp_der_emt` FMU on linux64 and win64
 //! (tests/tests/emt_conformance.rs, tests/tests/win64.rs).
 
-use dvpp_control::converter::{Abc, InnerDesign};
+mod support;
+use dvpp_control::converter::Abc;
 use dvpp_controllers::emt::trajectory::{Trajectory, N_OUT, OUTPUTS};
-use dvpp_controllers::emt::{
-    EmtCommand, EmtMeasurement, EmtParams, EmtUnit, FilterParams, InnerKind, QPiParams,
-};
-use dvpp_controllers::layer::TDesParams;
-use dvpp_controllers::{
-    AdpfChannel, AdpfKind, AdpfParams, ComplementParams, DcLinkParams, Mode, OperatorGains,
-    PllParams, Rating, SourceParams, MAX_LPF,
-};
+use dvpp_controllers::emt::{EmtCommand, EmtMeasurement, EmtParams, EmtUnit, InnerKind};
+use dvpp_controllers::{AdpfKind, Mode};
 use emt_plant_model::Plant;
 use fmi_export::harness::Harness;
 use fmi_export::Status;
 use std::path::PathBuf;
+use support::{command, measure, unit_params, GAINS};
 
 /// The step of every case (s).
 const H: f64 = 50e-6;
@@ -106,93 +102,6 @@ const CASES: [Case; 8] = [
     },
 ];
 
-/// The generic unit of the FMU's start values (a 60 MVA grid-forming unit with static ADPFs,
-/// the paper's filter and transformer), in `mode` with `kind`; grid-following with `vq.tau` =
-/// 2 s (the v-q droop's lag; 0.5 s is not stable on weak grids, docs/emt.md).
-fn unit_params(mode: Mode, kind: InnerKind) -> EmtParams {
-    let adpf = |channel, complement| AdpfParams {
-        channel,
-        kind: AdpfKind::Static,
-        tau: 1.0,
-        tau2: 0.1,
-        order: 1,
-        order2: 1,
-        complement,
-    };
-    EmtParams {
-        rating: Rating {
-            s_rated: 60.0,
-            s_base: 100.0,
-            s_dvpp: 96.0,
-            f_nom: 50.0,
-        },
-        mode,
-        tdes: TDesParams {
-            h: 5.55,
-            d: 33.33,
-            dq: 0.01,
-            tau_q: 0.01,
-        },
-        adpf_p: adpf(
-            AdpfChannel::P,
-            Some(ComplementParams {
-                share: 1.0,
-                n_lpf: 0,
-                lpf_tau: [1.0; MAX_LPF],
-                lpf_order: [1; MAX_LPF],
-            }),
-        ),
-        adpf_q: adpf(AdpfChannel::Q, None),
-        pll: PllParams {
-            kp: 60.0,
-            ki: 240.0,
-            tau: 1.0 / 60.0,
-            order: 2,
-        },
-        qpi: QPiParams {
-            kp: 0.05,
-            ki: 0.5,
-            e_max: 1.5,
-        },
-        vq_tau: match mode {
-            Mode::GridForming => 0.5,
-            Mode::GridFollowing => 2.0,
-        },
-        filter: FilterParams {
-            r_f: 0.01,
-            l_f: 0.11,
-            c_f: 0.0942,
-            r_t: 0.01,
-            l_t: 0.1,
-        },
-        vdc_ratio: 3.0,
-        vi_r: 0.3,
-        inner: InnerDesign::default(),
-        inner_kind: kind,
-        t_s: H,
-        dc: DcLinkParams {
-            tau_dc: 0.2,
-            c_dc: 0.096,
-            g_dc: 0.05,
-            k_dc: 100.0,
-            zeta: 0.7,
-        },
-        source: SourceParams {
-            storage: false,
-            deload: 1.0,
-            p_avail0: 0.6,
-            avail_t: 1.0,
-            avail_dp: 0.0,
-        },
-    }
-}
-
-const GAINS: OperatorGains = OperatorGains {
-    mu_p: 1.0,
-    mu_q: 1.0,
-    mu_p_lpf: [0.0; MAX_LPF],
-};
-
 impl Case {
     fn params(&self) -> EmtParams {
         unit_params(self.mode, self.kind)
@@ -227,32 +136,6 @@ impl Case {
             if thevenin { 0.3 } else { 0.0 }
         )
     }
-}
-
-/// The plant's measurements of unit 1 at `t`.
-fn measure(plant: &mut Harness<Plant>, t: f64) -> EmtMeasurement {
-    let mut three = |w: &str| {
-        let [a, b, c] = ["a", "b", "c"].map(|ph| plant.get(&format!("der[1].{w}_{ph}")));
-        Abc { a, b, c }
-    };
-    let (v_c, i_f, i_g) = (three("v"), three("i"), three("ig"));
-    EmtMeasurement {
-        t,
-        v_c,
-        i_f,
-        i_g,
-        v_dc: plant.get("der[1].v_dc"),
-    }
-}
-
-/// The command into the plant's inputs.
-fn command(plant: &mut Harness<Plant>, c: &EmtCommand) {
-    for (ph, m) in ["a", "b", "c"].iter().zip(c.m_abc) {
-        plant.set(&format!("der[1].m_{ph}"), m);
-    }
-    plant.set("der[1].i_dc_ref", c.i_dc_ref);
-    plant.set("der[1].p_src_min", c.p_src_min);
-    plant.set("der[1].p_src_max", c.p_src_max);
 }
 
 /// The unit in closed loop with the plant for `n` steps: its initialization and every step

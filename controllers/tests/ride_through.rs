@@ -13,106 +13,20 @@
 //! in the frame (rad), p, q, v, the phase peak, active and reactive current, the limit flag, E,
 //! v_dc and the modulation and source limit flags.
 
-use dvpp_control::converter::{Abc, Dq, InnerDesign};
-use dvpp_controllers::emt::{
-    EmtCommand, EmtMeasurement, EmtParams, EmtUnit, FilterParams, InnerKind, QPiParams,
-};
-use dvpp_controllers::layer::TDesParams;
-use dvpp_controllers::{
-    AdpfChannel, AdpfKind, AdpfParams, ComplementParams, DcLinkParams, Mode, OperatorGains,
-    PllParams, Rating, SourceParams, MAX_LPF,
-};
+mod support;
+use dvpp_control::converter::{Abc, Dq};
+use dvpp_controllers::emt::{EmtParams, EmtUnit, InnerKind};
+use dvpp_controllers::Mode;
 use emt_plant_model::Plant;
 use fmi_export::harness::Harness;
 use fmi_export::Status;
 use std::f64::consts::PI;
+use support::{command, measure, GAINS};
 
 /// The step (s).
 const H: f64 = 50e-6;
 /// When every event starts (s).
 const T_EVENT: f64 = 0.5;
-
-const GAINS: OperatorGains = OperatorGains {
-    mu_p: 1.0,
-    mu_q: 1.0,
-    mu_p_lpf: [0.0; MAX_LPF],
-};
-
-/// The conformance test's generic unit, grid-forming, option A, as storage.
-fn unit_params() -> EmtParams {
-    let adpf = |channel, complement| AdpfParams {
-        channel,
-        kind: AdpfKind::Static,
-        tau: 1.0,
-        tau2: 0.1,
-        order: 1,
-        order2: 1,
-        complement,
-    };
-    EmtParams {
-        rating: Rating {
-            s_rated: 60.0,
-            s_base: 100.0,
-            s_dvpp: 96.0,
-            f_nom: 50.0,
-        },
-        mode: Mode::GridForming,
-        tdes: TDesParams {
-            h: 5.55,
-            d: 33.33,
-            dq: 0.01,
-            tau_q: 0.01,
-        },
-        adpf_p: adpf(
-            AdpfChannel::P,
-            Some(ComplementParams {
-                share: 1.0,
-                n_lpf: 0,
-                lpf_tau: [1.0; MAX_LPF],
-                lpf_order: [1; MAX_LPF],
-            }),
-        ),
-        adpf_q: adpf(AdpfChannel::Q, None),
-        pll: PllParams {
-            kp: 60.0,
-            ki: 240.0,
-            tau: 1.0 / 60.0,
-            order: 2,
-        },
-        qpi: QPiParams {
-            kp: 0.05,
-            ki: 0.5,
-            e_max: 1.5,
-        },
-        vq_tau: 0.5,
-        filter: FilterParams {
-            r_f: 0.01,
-            l_f: 0.11,
-            c_f: 0.0942,
-            r_t: 0.01,
-            l_t: 0.1,
-        },
-        vdc_ratio: 3.0,
-        vi_r: 0.3,
-        inner: InnerDesign::default(),
-        inner_kind: InnerKind::OptionA,
-        t_s: H,
-        dc: DcLinkParams {
-            tau_dc: 0.2,
-            c_dc: 0.096,
-            g_dc: 0.05,
-            k_dc: 100.0,
-            zeta: 0.7,
-        },
-        source: SourceParams {
-            storage: true,
-            deload: 1.0,
-            p_avail0: 0.9,
-            avail_t: 1.0,
-            avail_dp: 0.0,
-        },
-    }
-}
 
 /// A bench event.
 #[derive(Clone, Copy, Debug)]
@@ -169,28 +83,18 @@ struct Sample {
     limit_source: bool,
 }
 
+/// The conformance test's generic unit, grid-forming, option A, as storage with 0.9 pu of
+/// S_base available.
+fn unit_params() -> EmtParams {
+    let mut p = support::unit_params(Mode::GridForming, InnerKind::OptionA);
+    p.source.storage = true;
+    p.source.p_avail0 = 0.9;
+    p
+}
+
 fn three(plant: &mut Harness<Plant>, w: &str) -> Abc {
     let [a, b, c] = ["a", "b", "c"].map(|ph| plant.get(&format!("{w}_{ph}")));
     Abc { a, b, c }
-}
-
-fn measure(plant: &mut Harness<Plant>, t: f64) -> EmtMeasurement {
-    EmtMeasurement {
-        t,
-        v_c: three(plant, "der[1].v"),
-        i_f: three(plant, "der[1].i"),
-        i_g: three(plant, "der[1].ig"),
-        v_dc: plant.get("der[1].v_dc"),
-    }
-}
-
-fn command(plant: &mut Harness<Plant>, c: &EmtCommand) {
-    for (ph, m) in ["a", "b", "c"].iter().zip(c.m_abc) {
-        plant.set(&format!("der[1].m_{ph}"), m);
-    }
-    plant.set("der[1].i_dc_ref", c.i_dc_ref);
-    plant.set("der[1].p_src_min", c.p_src_min);
-    plant.set("der[1].p_src_max", c.p_src_max);
 }
 
 /// The closed loop over `s`; one sample per step.

@@ -13,11 +13,9 @@ use dvpp_control::converter::Abc;
 use dvpp_controllers::emt::trajectory::{Trajectory, N_OUT, OUTPUTS};
 use dvpp_controllers::emt::{EmtCommand, EmtMeasurement, EmtParams, EmtUnit, InnerKind};
 use dvpp_controllers::{AdpfKind, Mode};
-use emt_plant_model::Plant;
-use fmi_export::harness::Harness;
 use fmi_export::Status;
 use std::path::PathBuf;
-use support::{command, measure, unit_params, GAINS};
+use support::{command, measure, plant_for, unit_params, GAINS};
 
 /// The step of every case (s).
 const H: f64 = 50e-6;
@@ -162,21 +160,7 @@ fn closed_loop_with(
     Vec<(EmtMeasurement, f64, EmtCommand)>,
 ) {
     let params = *params;
-    let mut plant = Harness::<Plant>::from_toml(&case.plant_toml());
-    assert_eq!(plant.setup_experiment(0.0, None), Status::Ok);
-    let f = params.filter;
-    for (name, value) in [
-        ("R_f", f.r_f),
-        ("L_f", f.l_f),
-        ("C_f", f.c_f),
-        ("R_t", f.r_t),
-        ("L_t", f.l_t),
-        ("C_dc", params.dc.c_dc),
-        ("G_dc", params.dc.g_dc),
-        ("tau_dc", params.dc.tau_dc),
-    ] {
-        plant.set(&format!("der[1].{name}"), value);
-    }
+    let mut plant = plant_for(&case.plant_toml(), &params);
     match case.grid {
         Grid::Stiff => {
             plant.set("thevenin.X", 0.03);

@@ -16,7 +16,7 @@ use dvpp_controllers::Mode;
 use emt_plant_model::Plant;
 use fmi_export::harness::Harness;
 use fmi_export::Status;
-use support::{command, measure, unit_params, GAINS};
+use support::{command, measure, plant_for, unit_params, GAINS, THEVENIN_UNIT};
 
 /// The step (s).
 const H: f64 = 50e-6;
@@ -135,22 +135,7 @@ impl Window {
 /// the last 0.5 s; and the whole run.
 fn run(scr: f64, event: Event) -> ([Window; 4], usize) {
     let params = unit_params(Mode::GridFollowing, InnerKind::OptionA);
-    let toml = "[model]\ncase = \"island\"\nthevenin = true\nunits = [{ name = \"unit\", s_rated = 60.0, tau_dc = 0.2, p0 = 0.3 }]\nloads = []\n";
-    let mut plant = Harness::<Plant>::from_toml(toml);
-    assert_eq!(plant.setup_experiment(0.0, None), Status::Ok);
-    let f = params.filter;
-    for (name, value) in [
-        ("R_f", f.r_f),
-        ("L_f", f.l_f),
-        ("C_f", f.c_f),
-        ("R_t", f.r_t),
-        ("L_t", f.l_t),
-        ("C_dc", params.dc.c_dc),
-        ("G_dc", params.dc.g_dc),
-        ("tau_dc", params.dc.tau_dc),
-    ] {
-        plant.set(&format!("der[1].{name}"), value);
-    }
+    let mut plant = plant_for(THEVENIN_UNIT, &params);
     // X on S_base for the SCR on the unit's rating.
     let x = params.rating.s_base / (params.rating.s_rated * scr);
     plant.set("thevenin.X", x);

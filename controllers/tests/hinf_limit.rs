@@ -11,10 +11,8 @@ mod support;
 use dvpp_control::converter::InnerDesign;
 use dvpp_controllers::emt::{EmtUnit, InnerKind};
 use dvpp_controllers::Mode;
-use emt_plant_model::Plant;
-use fmi_export::harness::Harness;
 use fmi_export::Status;
-use support::{command, measure, unit_params, GAINS};
+use support::{command, measure, plant_for, unit_params, GAINS, THEVENIN_UNIT};
 
 /// The step (s).
 const H: f64 = 50e-6;
@@ -82,22 +80,7 @@ struct Run {
 /// The unit with `kind` on the source of SCR 10 through `e`.
 fn run(kind: InnerKind, e: &Event) -> Run {
     let params = unit_params(Mode::GridForming, kind);
-    let toml = "[model]\ncase = \"island\"\nthevenin = true\nunits = [{ name = \"unit\", s_rated = 60.0, tau_dc = 0.2, p0 = 0.3 }]\nloads = []\n";
-    let mut plant = Harness::<Plant>::from_toml(toml);
-    assert_eq!(plant.setup_experiment(0.0, None), Status::Ok);
-    let f = params.filter;
-    for (name, value) in [
-        ("R_f", f.r_f),
-        ("L_f", f.l_f),
-        ("C_f", f.c_f),
-        ("R_t", f.r_t),
-        ("L_t", f.l_t),
-        ("C_dc", params.dc.c_dc),
-        ("G_dc", params.dc.g_dc),
-        ("tau_dc", params.dc.tau_dc),
-    ] {
-        plant.set(&format!("der[1].{name}"), value);
-    }
+    let mut plant = plant_for(THEVENIN_UNIT, &params);
     let x = params.rating.s_base / (params.rating.s_rated * 10.0);
     plant.set("thevenin.X", x);
     plant.set("thevenin.R", x / 10.0);

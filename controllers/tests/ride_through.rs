@@ -21,7 +21,7 @@ use emt_plant_model::Plant;
 use fmi_export::harness::Harness;
 use fmi_export::Status;
 use std::f64::consts::PI;
-use support::{command, measure, GAINS};
+use support::{command, measure, plant_for, GAINS, THEVENIN_UNIT};
 
 /// The step (s).
 const H: f64 = 50e-6;
@@ -100,22 +100,8 @@ fn three(plant: &mut Harness<Plant>, w: &str) -> Abc {
 /// The closed loop over `s`; one sample per step.
 fn run(s: Setting) -> Vec<Sample> {
     let params = unit_params();
-    let toml = "[model]\ncase = \"island\"\nthevenin = true\nunits = [{ name = \"unit\", s_rated = 60.0, tau_dc = 0.2, p0 = 0.3 }]\nloads = []\n";
-    let mut plant = Harness::<Plant>::from_toml(toml);
-    assert_eq!(plant.setup_experiment(0.0, None), Status::Ok);
+    let mut plant = plant_for(THEVENIN_UNIT, &params);
     let f = params.filter;
-    for (name, value) in [
-        ("R_f", f.r_f),
-        ("L_f", f.l_f),
-        ("C_f", f.c_f),
-        ("R_t", f.r_t),
-        ("L_t", f.l_t),
-        ("C_dc", params.dc.c_dc),
-        ("G_dc", params.dc.g_dc),
-        ("tau_dc", params.dc.tau_dc),
-    ] {
-        plant.set(&format!("der[1].{name}"), value);
-    }
     let x = params.rating.s_base / (params.rating.s_rated * s.scr);
     plant.set("thevenin.X", x);
     plant.set("thevenin.R", x / 10.0);

@@ -11,6 +11,7 @@ use dvpp_controllers::{
 };
 use emt_plant_model::Plant;
 use fmi_export::harness::Harness;
+use fmi_export::Status;
 
 /// The generic unit of the FMU's start values (a 60 MVA grid-forming unit with static ADPFs,
 /// the paper's filter and transformer), in `mode` with `kind`; grid-following with `vq.tau` =
@@ -124,4 +125,30 @@ pub fn command(plant: &mut Harness<Plant>, c: &EmtCommand) {
     plant.set("der[1].i_dc_ref", c.i_dc_ref);
     plant.set("der[1].p_src_min", c.p_src_min);
     plant.set("der[1].p_src_max", c.p_src_max);
+}
+
+/// The plant's configuration of one 60 MVA unit exporting 0.3 pu of `S_base` into a Thevenin
+/// source, no load (the conformance cases have their own).
+#[allow(dead_code)]
+pub const THEVENIN_UNIT: &str = "[model]\ncase = \"island\"\nthevenin = true\nunits = [{ name = \"unit\", s_rated = 60.0, tau_dc = 0.2, p0 = 0.3 }]\nloads = []\n";
+
+/// The EMT plant of configuration `toml`, its experiment set up, with unit 1's filter,
+/// transformer and dc link those the unit `params` is designed for.
+pub fn plant_for(toml: &str, params: &EmtParams) -> Harness<Plant> {
+    let mut plant = Harness::<Plant>::from_toml(toml);
+    assert_eq!(plant.setup_experiment(0.0, None), Status::Ok);
+    let f = params.filter;
+    for (name, value) in [
+        ("R_f", f.r_f),
+        ("L_f", f.l_f),
+        ("C_f", f.c_f),
+        ("R_t", f.r_t),
+        ("L_t", f.l_t),
+        ("C_dc", params.dc.c_dc),
+        ("G_dc", params.dc.g_dc),
+        ("tau_dc", params.dc.tau_dc),
+    ] {
+        plant.set(&format!("der[1].{name}"), value);
+    }
+    plant
 }

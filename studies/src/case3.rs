@@ -15,7 +15,6 @@ use dvpp_report::casestudy::{nrmse, nrmse_window, window};
 use dvpp_report::plot::{Figure, Panel, Style};
 use grid_model::ports as grid_ports;
 use std::path::Path;
-use std::sync::Mutex;
 
 use crate::sweep::{save_figure, set_start, Rng};
 
@@ -150,33 +149,12 @@ fn mv_lines(pkg: &ssp::Package) -> Result<usize, String> {
 
 /// Run every job on all cores with progress; results in job order.
 fn run_all(jobs: Vec<(ssp::Package, Run)>) -> Vec<Run> {
-    let n = jobs.len();
-    let queue = Mutex::new(jobs.into_iter().enumerate().collect::<Vec<_>>());
-    let done = Mutex::new(Vec::new());
     let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let started = std::time::Instant::now();
-    std::thread::scope(|s| {
-        for _ in 0..workers {
-            s.spawn(|| loop {
-                let Some((i, (pkg, mut run))) = queue.lock().expect("queue").pop() else {
-                    break;
-                };
-                simulate(&pkg, &mut run);
-                let mut d = done.lock().expect("done");
-                d.push((i, run));
-                if d.len() % 8 == 0 || d.len() == n {
-                    println!(
-                        "case3: {}/{n} runs ({:.0} s)",
-                        d.len(),
-                        started.elapsed().as_secs_f64()
-                    );
-                }
-            });
-        }
-    });
-    let mut d = done.into_inner().expect("done");
-    d.sort_by_key(|x| x.0);
-    d.into_iter().map(|x| x.1).collect()
+    crate::parallel::in_order("case3", jobs, workers, 8, |(pkg, mut run)| {
+        simulate(&pkg, &mut run);
+        run
+    })
+    .unwrap_or_else(|e| panic!("{e}"))
 }
 
 fn median(mut x: Vec<f64>) -> f64 {

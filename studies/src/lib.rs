@@ -7,6 +7,7 @@ pub mod case3;
 pub mod demo;
 pub mod docs;
 pub mod outage;
+pub mod parallel;
 pub mod ride_through;
 pub mod scenario;
 pub mod sweep;

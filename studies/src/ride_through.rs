@@ -24,7 +24,6 @@ use dvpp_cosim::Table;
 use dvpp_report::plot::{Figure, Panel, Style};
 use std::fmt::Write as _;
 use std::path::Path;
-use std::sync::{mpsc, Arc, Mutex};
 
 /// When the event starts and when a run ends, s.
 pub const T_EVENT: f64 = 1.0;
@@ -395,71 +394,34 @@ pub fn run_all(
                 .map_err(|e| format!("{}: {e} (run `cargo xtask bundle`)", path.display()))?,
         ));
     }
-    let bases = Arc::new(bases);
-    let keep = keep.map(Path::to_path_buf);
-    let n = jobs.len();
-    let queue = Arc::new(Mutex::new(
-        jobs.into_iter().enumerate().rev().collect::<Vec<_>>(),
-    ));
-    let (tx, rx) = mpsc::channel();
-    let started = std::time::Instant::now();
-    let handles: Vec<_> = (0..workers)
-        .map(|_| {
-            let (queue, bases, tx, keep) = (queue.clone(), bases.clone(), tx.clone(), keep.clone());
-            std::thread::spawn(move || loop {
-                let Some((i, job)) = queue.lock().expect("queue").pop() else {
-                    break;
-                };
-                let base = &bases
-                    .iter()
-                    .find(|b| b.0 == job.control.system())
-                    .expect("bundled")
-                    .1;
-                let opts = Options {
-                    stop: Some(T_END),
-                    step: None,
-                    algorithm: Scheme::Jacobi,
-                };
-                let table = prepare(base, &job).and_then(|pkg| {
-                    master::System::builder(&pkg)
-                        .load()
-                        .and_then(|mut s| {
-                            s.quiet();
-                            s.simulate_recording(&opts, record())
-                        })
-                        .map_err(|e| e.to_string())
-                });
-                if let (Some(dir), Ok(t)) = (&keep, &table) {
-                    let path = dir.join(format!("{}.csv", file_name(&job.name())));
-                    if let Err(e) = write_table(&path, t) {
-                        eprintln!("ride-through: {}: {e}", path.display());
-                    }
-                }
-                if tx.send((i, measure(job, table))).is_err() {
-                    break;
-                }
-            })
-        })
-        .collect();
-    drop(tx);
-    let mut rows: Vec<Option<Row>> = vec![None; n];
-    for (done, (i, row)) in rx.iter().enumerate() {
-        rows[i] = Some(row);
-        if (done + 1) % 9 == 0 || done + 1 == n {
-            println!(
-                "ride-through: {}/{n} runs ({:.0} s)",
-                done + 1,
-                started.elapsed().as_secs_f64()
-            );
+    crate::parallel::in_order("ride-through", jobs, workers, 9, |job: Job| {
+        let base = &bases
+            .iter()
+            .find(|b| b.0 == job.control.system())
+            .expect("bundled")
+            .1;
+        let opts = Options {
+            stop: Some(T_END),
+            step: None,
+            algorithm: Scheme::Jacobi,
+        };
+        let table = prepare(base, &job).and_then(|pkg| {
+            master::System::builder(&pkg)
+                .load()
+                .and_then(|mut s| {
+                    s.quiet();
+                    s.simulate_recording(&opts, record())
+                })
+                .map_err(|e| e.to_string())
+        });
+        if let (Some(dir), Ok(t)) = (keep, &table) {
+            let path = dir.join(format!("{}.csv", file_name(&job.name())));
+            if let Err(e) = write_table(&path, t) {
+                eprintln!("ride-through: {}: {e}", path.display());
+            }
         }
-    }
-    for h in handles {
-        h.join().map_err(|_| "a ride-through worker panicked")?;
-    }
-    Ok(rows
-        .into_iter()
-        .map(|r| r.expect("every job ran"))
-        .collect())
+        measure(job, table)
+    })
 }
 
 fn number(x: f64, digits: usize) -> String {

@@ -19,7 +19,6 @@ use dvpp_cosim::Table;
 use dvpp_report::casestudy::Signals;
 use dvpp_report::plot::{Figure, Panel, Style};
 use std::path::Path;
-use std::sync::{mpsc, Arc, Mutex};
 
 /// The family: ε in percent, as in the scenario names.
 pub const EPS: [u32; 5] = [0, 25, 50, 75, 100];
@@ -266,59 +265,25 @@ pub fn run_all(root: &Path, jobs: Vec<Job>, workers: usize) -> Result<Vec<Row>, 
             .join(format!("{name}.toml"));
         bases.push((eps, pkg, crate::scenario::units(&scenario)?));
     }
-    let bases = Arc::new(bases);
-    let n = jobs.len();
-    let queue = Arc::new(Mutex::new(jobs.into_iter().enumerate().collect::<Vec<_>>()));
-    let (tx, rx) = mpsc::channel();
-    let started = std::time::Instant::now();
-    let handles: Vec<_> = (0..workers)
-        .map(|_| {
-            let (queue, bases, tx) = (queue.clone(), bases.clone(), tx.clone());
-            std::thread::spawn(move || loop {
-                let Some((i, job)) = queue.lock().expect("queue").pop() else {
-                    break;
-                };
-                let (_, base, units) = bases.iter().find(|b| b.0 == job.eps).expect("bundled");
-                // The nominal run is the scenario as shipped (20 s); Monte Carlo runs are 10 s.
-                let opts = Options {
-                    stop: (job.family != Family::Nominal).then_some(T_RUN),
-                    step: None,
-                    algorithm: Scheme::Jacobi,
-                };
-                let table = prepare(base, &job).and_then(|pkg| {
-                    master::System::builder(&pkg)
-                        .load()
-                        .and_then(|mut s| {
-                            s.quiet();
-                            s.simulate_recording(&opts, Record::system_default())
-                        })
-                        .map_err(|e| e.to_string())
-                });
-                if tx.send((i, measure(job, table, units))).is_err() {
-                    break;
-                }
-            })
-        })
-        .collect();
-    drop(tx);
-    let mut rows: Vec<Option<Row>> = vec![None; n];
-    for (done, (i, row)) in rx.iter().enumerate() {
-        rows[i] = Some(row);
-        if (done + 1) % 10 == 0 || done + 1 == n {
-            println!(
-                "sweep: {}/{n} runs ({:.0} s)",
-                done + 1,
-                started.elapsed().as_secs_f64()
-            );
-        }
-    }
-    for h in handles {
-        h.join().map_err(|_| "a sweep worker panicked")?;
-    }
-    Ok(rows
-        .into_iter()
-        .map(|r| r.expect("every job ran"))
-        .collect())
+    crate::parallel::in_order("sweep", jobs, workers, 10, |job: Job| {
+        let (_, base, units) = bases.iter().find(|b| b.0 == job.eps).expect("bundled");
+        // The nominal run is the scenario as shipped (20 s); Monte Carlo runs are 10 s.
+        let opts = Options {
+            stop: (job.family != Family::Nominal).then_some(T_RUN),
+            step: None,
+            algorithm: Scheme::Jacobi,
+        };
+        let table = prepare(base, &job).and_then(|pkg| {
+            master::System::builder(&pkg)
+                .load()
+                .and_then(|mut s| {
+                    s.quiet();
+                    s.simulate_recording(&opts, Record::system_default())
+                })
+                .map_err(|e| e.to_string())
+        });
+        measure(job, table, units)
+    })
 }
 
 fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {

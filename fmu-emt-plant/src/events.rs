@@ -581,13 +581,7 @@ impl Plant {
         }
         let mut z = Self::augmented_bench(b, run);
         for (k, u) in self.units.iter().enumerate() {
-            let mut clamped = false;
-            let m = u.m.map(|r| {
-                let m = s[r];
-                clamped |= m.abs() > 1.0;
-                m.clamp(-1.0, 1.0)
-            });
-            s[u.m_clamped] = clamped;
+            let m = u.modulation(s);
             let v_dc = run.dc[k].v(&fixed.dc[k]);
             let [a, bb] = clarke(m);
             let ix = b.unit(k).u;

@@ -126,6 +126,20 @@ struct UnitVars {
     m_clamped: Boolean,
 }
 
+impl UnitVars {
+    /// The unit's modulation indices, each clamped to [-1, 1]; `m_clamped` says whether any was.
+    fn modulation(&self, s: &mut Store) -> [f64; 3] {
+        let mut clamped = false;
+        let m = self.m.map(|r| {
+            let m = s[r];
+            clamped |= m.abs() > 1.0;
+            m.clamp(-1.0, 1.0)
+        });
+        s[self.m_clamped] = clamped;
+        m
+    }
+}
+
 /// Handles of one load's variables.
 #[derive(Clone, Serialize, Deserialize)]
 struct LoadVars {
@@ -1165,13 +1179,7 @@ impl Model for Plant {
         }
         let mut z = Self::augmented(fixed, run);
         for (k, u) in self.units.iter().enumerate() {
-            let mut clamped = false;
-            let m = u.m.map(|r| {
-                let m = s[r];
-                clamped |= m.abs() > 1.0;
-                m.clamp(-1.0, 1.0)
-            });
-            s[u.m_clamped] = clamped;
+            let m = u.modulation(s);
             let v_dc = run.dc[k].v(&fixed.dc[k]);
             let [a, b] = clarke(m);
             z[net.u(k)] = 1.5 * v_dc * a;

@@ -264,11 +264,13 @@ fn record() -> Record {
         "plant.der[*].i_*".to_string(),
         "plant.der[*].p".into(),
         "plant.der[*].q".into(),
+        "plant.der[*].v_dc".into(),
         "plant.pcc.v".into(),
         "plant.thevenin.f".into(),
         "plant.energy.*".into(),
     ];
     patterns.extend(UNITS.iter().map(|u| format!("{u}.df")));
+    patterns.extend(UNITS.iter().map(|u| format!("{u}.limit.*")));
     Record {
         patterns: Some(patterns),
         interval: None,

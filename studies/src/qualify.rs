@@ -1416,6 +1416,17 @@ pub fn html(rows: &[Row], versions: &str, wall: f64) -> String {
         h.push_str("</tr>\n");
     }
     h.push_str("</table>\n");
+    let failed = failures(rows);
+    let _ = writeln!(
+        h,
+        "<h2 id=\"failures\">Failures</h2>\n<p>{} of {} cells fail; each with its measured figure, its bound and why (a known limit of the design where one is known; docs/qualification.md, \"Why cells fail\").</p>\n<ul>",
+        failed.len(),
+        rows.len()
+    );
+    for f in &failed {
+        let _ = writeln!(h, "<li>{}</li>", esc(f));
+    }
+    h.push_str("</ul>\n");
     for test in Test::ALL {
         let mine: Vec<&Row> = rows.iter().filter(|r| r.job.test == test).collect();
         if mine.is_empty() {
@@ -1495,8 +1506,16 @@ fn write_traces(path: &Path, r: &Row) -> Result<(), String> {
     std::fs::write(path, text).map_err(|e| format!("{}: {e}", path.display()))
 }
 
+/// The tests whose figures go to tests/figures/ (`qualify_<id>.svg`) for the docs.
+pub const ENVELOPE_FIGURES: [Test; 3] = [
+    Test::VoltageStep,
+    Test::Island { charging: false },
+    Test::Rocof1,
+];
+
 /// `cargo xtask qualify [--only TEXT]`: every run on all cores, `results/qualification.html`,
-/// `results/qualification.csv` and the matrix between `qualify:begin` and `qualify:end` in
+/// `results/qualification.csv`, the envelope figures `tests/figures/qualify_<test>.svg` and the
+/// matrix between `qualify:begin` and `qualify:end` in
 /// docs/qualification.md; with `--only`, the runs whose name (test, subject, control) contains
 /// TEXT, the matrix printed and each run's traces in `results/qualify/`.
 pub fn qualify(root: &Path, args: &[String]) -> Result<(), String> {
@@ -1547,6 +1566,14 @@ pub fn qualify(root: &Path, args: &[String]) -> Result<(), String> {
     let page = dir.join("qualification.html");
     std::fs::write(&page, html(&rows, &versions(root), wall))
         .map_err(|e| format!("{}: {e}", page.display()))?;
+    // The envelope tests' figures for docs/qualification.md (one per kind of envelope).
+    for test in ENVELOPE_FIGURES {
+        crate::sweep::save_figure(
+            root,
+            &figure(test, &rows),
+            &format!("qualify_{}.svg", test.id()),
+        )?;
+    }
     crate::docs::update_between(
         root,
         "docs/qualification.md",
@@ -1554,6 +1581,6 @@ pub fn qualify(root: &Path, args: &[String]) -> Result<(), String> {
         "<!-- qualify:end -->",
         &matrix,
     )?;
-    println!("qualify: results/qualification.html, results/qualification.csv and the matrix in docs/qualification.md");
+    println!("qualify: results/qualification.html, results/qualification.csv, tests/figures/qualify_*.svg and the matrix in docs/qualification.md");
     Ok(())
 }

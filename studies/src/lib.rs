@@ -8,6 +8,7 @@ pub mod demo;
 pub mod docs;
 pub mod outage;
 pub mod parallel;
+pub mod qualify;
 pub mod ride_through;
 pub mod scenario;
 pub mod sweep;

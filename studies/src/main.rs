@@ -19,7 +19,11 @@ studies:
                              per family (at bus 2, at a random bus; seed 1)
   outage                     case study II's outage of SG1 and SG3, a verdict per ε
   ride-through [--only TEXT] case study I's DVPP at EMT level through the grid codes' events
-                             (dips, faults, 25° jumps, 5 Hz/s) per option, mode and SCR";
+                             (dips, faults, 25° jumps, 5 Hz/s) per option, mode and SCR
+  qualify [--only TEXT]      the grid-forming qualification suite: each preset unit alone and
+                             case study I's DVPP through the grid codes' tests, per option and
+                             mode; results/qualification.html and the matrix of
+                             docs/qualification.md";
 
 fn main() -> ExitCode {
     let mut args: Vec<String> = std::env::args().skip(1).collect();
@@ -38,6 +42,7 @@ fn main() -> ExitCode {
         Some("sweep") => dvpp_studies::sweep::sweep(&root, &args[1..]),
         Some("outage") if args.len() == 1 => dvpp_studies::outage::outage(&root).map(|_| ()),
         Some("ride-through") => dvpp_studies::ride_through::ride_through(&root, &args[1..]),
+        Some("qualify") => dvpp_studies::qualify::qualify(&root, &args[1..]),
         _ => Err(USAGE.into()),
     };
     match result {

@@ -3,6 +3,7 @@
 
 mod apt;
 mod catalog;
+mod chromium;
 mod docs;
 mod federation;
 mod fuzz;
@@ -97,8 +98,9 @@ tasks:
            20) beside our master's phasor runs; CSVs in results/, figures
            tests/figures/emt_case1_<event>.svg, the table of docs/emt.md (full runs only); fails
            when a criterion of docs/emt.md §12 is not met
-  test     install the win64 toolchain and wine, and dvpp-design's libopenblas-dev and
-           libgfortran-12-dev, if missing (rustup, apt-get), bundle, run the
+  test     install the win64 toolchain and wine, dvpp-design's libopenblas-dev and
+           libgfortran-12-dev, and chromium (the qualification report's browser test,
+           required: DVPP_REQUIRE_CHROMIUM=1), if missing (rustup, apt-get), bundle, run the
            Rust tests (the win64 binaries under wine among them, required: DVPP_REQUIRE_WIN64=1
            unless DVPP_WIN64=0), the short fuzz (`fuzz --cases 300 --seed 1`), the API docs
            without warnings, then the Python (fmpy) tests in target/venv
@@ -122,6 +124,14 @@ tasks:
            line-to-line faults, ±25° phase jumps, ±5 Hz/s) per control (option A, option B,
            grid-following) and SCR (10, 3, 1.5) on all cores: results/ride_through.csv,
            tests/figures/ride_through.svg and the table of docs/emt-unit.md
+  qualify [--only TEXT]
+           bundle, then run the grid-forming qualification suite on all cores: each preset unit
+           (wind, PV, BESS) alone on its rating and case study I's DVPP at the PCC, option A, B
+           and grid-following, through the grid codes' tests (phase jumps, RoCoF, voltage step,
+           dips and faults, SCR step, loss of the grid, damping), judged against each source's
+           bound or the subject's reference model: results/qualification.html (self-contained),
+           results/qualification.csv and the matrix of docs/qualification.md; with --only, the
+           runs whose name contains TEXT, printed only
   fuzz [--cases N] [--seed S] [--jobs J] [--first K]
            bundle the FMUs and case1_load, then run N (default 10000) seeded cases, in turn: a
            variant of case1_load's SSD run by the `cosim` binary, a variant of a shipped
@@ -156,7 +166,7 @@ fn main() -> ExitCode {
         Some("bundle") => bundle(&args[1..]).map(|_| ()),
         Some("cosim") => run(master_binary("cosim").args(&args[1..])),
         // The case studies: bundle, then the studies' release binary.
-        Some(study @ ("demo" | "sweep" | "case3" | "outage" | "ride-through")) => {
+        Some(study @ ("demo" | "sweep" | "case3" | "outage" | "ride-through" | "qualify")) => {
             bundle(&[]).and_then(|_| run(study_binary()?.arg(study).args(&args[1..])))
         }
         Some("bench") => bench(),
@@ -571,6 +581,7 @@ fn test() -> Result {
     components(&["rustfmt", "clippy"])?;
     run(cargo().args(["fmt", "--all", "--check"]))?;
     let win64_required = win64::install_for_tests();
+    chromium::install_for_tests();
     // Before anything builds the workspace: dvpp-design links OpenBLAS and libgfortran.
     hinf::install();
     run(cargo().args([
@@ -592,7 +603,8 @@ fn test() -> Result {
         .args(["test", "--workspace"])
         .env("DVPP_DIST", &dist)
         .env("DVPP_COSIM", &cosim)
-        .env("DVPP_REQUIRE_HELICS", "1");
+        .env("DVPP_REQUIRE_HELICS", "1")
+        .env(chromium::REQUIRE, "1");
     if win64_required {
         tests.env(win64::REQUIRE, "1");
     }

@@ -8,11 +8,7 @@ pub const INTERFACE_HEADER: &str = include_str!("../include/IEEE_Cigre_DLLInterf
 
 /// A C literal of `x` that reads back as the same double.
 fn c_double(x: f64) -> String {
-    if x == x.trunc() && x.abs() < 1e15 {
-        format!("{x:.1}")
-    } else {
-        format!("{x:e}")
-    }
+    format!("{x:?}")
 }
 
 fn c_comment(s: &str) -> String {

@@ -487,7 +487,7 @@ fn three_der_instances_in_closed_loop_with_the_emt_plant_and_the_operator_match_
         }
         x.push(("pcc.p".into(), loops.iter().map(|l| l.last[p]).sum()));
         x.push(("pcc.q".into(), loops.iter().map(|l| l.last[q]).sum()));
-        x.push(("pcc.f".into(), 50.0 * (1.0 + loops[0].last[df])));
+        x.push(("pcc.f".into(), 1.0 + loops[0].last[df]));
         x.push(("pcc.v".into(), loops[0].last[v]));
         x
     };

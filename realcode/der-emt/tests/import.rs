@@ -632,3 +632,68 @@ fn model_outputs_cost_per_call() {
         }
     }
 }
+
+/// The headers `cargo xtask bundle` ships (written by the describe program) compile with a C
+/// compiler, and the model's structs have the sizes and offsets the import tool computed from
+/// the model info.
+#[test]
+fn the_shipped_headers_compile_and_agree_with_the_model_info() {
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("realcode headers");
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).expect("a directory");
+    let status = std::process::Command::new(env!("CARGO_BIN_EXE_realcode-der-emt-describe"))
+        .arg(&dir)
+        .status()
+        .expect("the describe program");
+    assert!(status.success());
+    for preset in ["wind", "pv", "bess"] {
+        let text = std::fs::read_to_string(dir.join(format!("dvpp_der_emt.{preset}.params")))
+            .expect("a preset's parameter set");
+        assert_eq!(
+            text.lines().count(),
+            der().info.parameters.len(),
+            "{preset}"
+        );
+    }
+    let info = &der().info;
+    let t_s = info
+        .parameters
+        .iter()
+        .find(|p| p.name == "t_s")
+        .expect("t_s")
+        .offset;
+    let c = dir.join("check.c");
+    std::fs::write(
+        &c,
+        "#include <stddef.h>\n#include <stdio.h>\n#include \"dvpp_der_emt.h\"\n\
+         int main(void) {\n    printf(\"%zu %zu %zu %zu %d\\n\", sizeof(dvpp_der_emt_Inputs), \
+         sizeof(dvpp_der_emt_Outputs), sizeof(dvpp_der_emt_Parameters), \
+         offsetof(dvpp_der_emt_Parameters, t_s), DVPP_DER_EMT_NUM_INT_STATES);\n    \
+         return 0;\n}\n",
+    )
+    .expect("write the check");
+    let exe = dir.join("check");
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let out = std::process::Command::new(&cc)
+        .args(["-std=c11", "-Wall", "-Wextra", "-Werror", "-I"])
+        .arg(&dir)
+        .arg(&c)
+        .arg("-o")
+        .arg(&exe)
+        .output()
+        .expect("a C compiler");
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let run = std::process::Command::new(&exe)
+        .output()
+        .expect("the check");
+    let got = String::from_utf8_lossy(&run.stdout).trim().to_string();
+    let want = format!(
+        "{} {} {} {t_s} {}",
+        info.sizes[0], info.sizes[1], info.sizes[2], info.int_states
+    );
+    assert_eq!(got, want, "the header's structs against the model info");
+}

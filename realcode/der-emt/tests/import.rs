@@ -697,3 +697,331 @@ fn the_shipped_headers_compile_and_agree_with_the_model_info() {
     );
     assert_eq!(got, want, "the header's structs against the model info");
 }
+
+/// One DVPP in closed loop, twice in one process: case study I's three units (the wind, PV and
+/// BESS presets, as `emt_thevenin` sets them) on one EMT plant with a Thevenin source and a load
+/// step, the operator's dc gains into the units and the units' powers and the PCC into the
+/// operator (every 20th step: its 1 ms), once through the DLLs (three DER instances and the
+/// operator) and once through the FMUs' models in process (`fmi_export`'s harness, as the FMU
+/// binaries run them); every output of every unit and of the operator, and the plant, bit for
+/// bit at every step.
+#[test]
+fn a_dvpp_of_three_der_instances_and_the_operator_in_closed_loop_matches_the_fmus() {
+    use dvpp_realcode::info::Layout;
+    use dvpp_realcode::DllSpec;
+    const PRESETS: [&str; 3] = ["wind", "pv", "bess"];
+    // emt_thevenin's start values of the units.
+    let overrides = |preset: &str| -> Vec<(&'static str, f64)> {
+        match preset {
+            "wind" => vec![("P_avail0", 0.43), ("deload", 0.8), ("qpi.kp", 0.12)],
+            "pv" => vec![("P_avail0", 0.70), ("deload", 0.8), ("qpi.kp", 0.12)],
+            _ => vec![("qpi.kp", 0.12)],
+        }
+    };
+    let layouts: Vec<Layout> = PRESETS
+        .iter()
+        .map(|p| {
+            let config: &'static str =
+                Box::leak(format!("[model]\npreset = \"{p}\"\n").into_boxed_str());
+            Layout::of::<der_model::emt::DerEmt>(&DllSpec {
+                config,
+                ..dvpp_der_emt_spec()
+            })
+            .expect("the preset's layout")
+        })
+        .collect();
+    let value = |l: &Layout, preset: &str, fmu: &str| -> f64 {
+        overrides(preset)
+            .iter()
+            .find(|(n, _)| *n == fmu)
+            .map(|o| o.1)
+            .unwrap_or_else(|| l.parameters.find(fmu).expect("a parameter").start)
+    };
+    // The plant: the three units at their dispatch, a load at the PCC and a step of it.
+    let units: Vec<String> = PRESETS
+        .iter()
+        .zip(&layouts)
+        .map(|(p, l)| {
+            format!(
+                "{{ name = \"{p}\", s_rated = {:?}, tau_dc = {:?}, p0 = {:?} }}",
+                value(l, p, "S_rated"),
+                value(l, p, "tau_dc"),
+                der_model::PRESETS
+                    .iter()
+                    .find(|k| k.name == *p)
+                    .expect("a preset")
+                    .p
+            )
+        })
+        .collect();
+    let plant_toml = format!(
+        "[model]\ncase = \"island\"\nthevenin = true\nunits = [{}]\nloads = [{{ name = \"base\", p = 0.9, q = 0.1 }}, {{ name = \"step\", p = 0.1, q = 0.02, t_on = 0.02 }}]\n",
+        units.join(", ")
+    );
+    let plant = || {
+        let mut p = Harness::<emt_plant_model::Plant>::from_toml(&plant_toml);
+        assert_eq!(p.setup_experiment(0.0, None), Status::Ok);
+        for (k, (preset, l)) in PRESETS.iter().zip(&layouts).enumerate() {
+            for n in ["R_f", "L_f", "C_f", "R_t", "L_t", "C_dc", "G_dc"] {
+                p.set(&format!("der[{}].{n}", k + 1), value(l, preset, n));
+            }
+        }
+        assert_eq!(p.enter_initialization_mode(), Status::Ok);
+        assert_eq!(p.exit_initialization_mode(), Status::Ok);
+        p
+    };
+    let (mut plant_dll, mut plant_fmu) = (plant(), plant());
+    // The plant's measurements of unit k and the PCC.
+    let measured = |p: &mut Harness<emt_plant_model::Plant>, k: usize| -> Vec<f64> {
+        INPUTS
+            .iter()
+            .map(|n| p.get(&format!("der[{k}].{n}")))
+            .collect()
+    };
+    let pcc = |p: &mut Harness<emt_plant_model::Plant>| -> [f64; 4] {
+        ["pcc.p", "pcc.q", "pcc.f", "pcc.v"].map(|n| p.get(n))
+    };
+    // The DLL side and the FMU side of each unit.
+    let mut dlls: Vec<Inst<'static>> = Vec::new();
+    let mut fmus: Vec<Harness<der_model::emt::DerEmt>> = Vec::new();
+    // The operator's gains of unit k and the unit's inputs they go to (the BESS, the
+    // complement unit, takes the low-pass units' active gains instead of its own).
+    let gain_names = |k: usize| -> Vec<String> {
+        if k == 3 {
+            ["der[3].mu_q", "der[3].mu_p_lpf[1]", "der[3].mu_p_lpf[2]"]
+                .map(String::from)
+                .to_vec()
+        } else {
+            vec![format!("der[{k}].mu_p"), format!("der[{k}].mu_q")]
+        }
+    };
+    let unit_gains = |k: usize| -> Vec<&'static str> {
+        if k == 3 {
+            vec!["mu_q", "mu_p_lpf[1]", "mu_p_lpf[2]"]
+        } else {
+            vec!["mu_p", "mu_q"]
+        }
+    };
+    for (k, (preset, l)) in PRESETS.iter().zip(&layouts).enumerate() {
+        let k = k + 1;
+        let m = measured(&mut plant_dll, k);
+        let mut d = der().instance().expect("an instance");
+        for f in &l.parameters.fields {
+            d.set_parameter(&f.name, value(l, preset, &f.fmu_name))
+                .expect("a parameter");
+        }
+        d.check_parameters()
+            .unwrap_or_else(|e| panic!("{preset}: {e}"));
+        for (n, x) in INPUTS.iter().zip(&m) {
+            d.set_input(n, *x).expect("an input");
+        }
+        let mut h = Harness::<der_model::emt::DerEmt>::from_toml(&format!(
+            "[model]\npreset = \"{preset}\"\n"
+        ));
+        for (n, x) in overrides(preset) {
+            h.set(n, x);
+        }
+        assert_eq!(h.setup_experiment(0.0, None), Status::Ok);
+        assert_eq!(h.enter_initialization_mode(), Status::Ok);
+        for (n, x) in INPUTS.iter().zip(&m) {
+            h.set(n, *x);
+        }
+        // The gains start at the unit's declared start values on both sides.
+        for f in l
+            .inputs
+            .fields
+            .iter()
+            .filter(|f| f.fmu_name.starts_with("mu_"))
+        {
+            d.set_input(&f.name, f.start).expect("a gain");
+            h.set(&f.fmu_name, f.start);
+        }
+        d.initialize(0.0)
+            .unwrap_or_else(|e| panic!("{preset}: {e}"));
+        assert_eq!(h.exit_initialization_mode(), Status::Ok, "{preset}");
+        dlls.push(d);
+        fmus.push(h);
+    }
+    let compare_unit = |k: usize,
+                        d: &mut Inst<'_>,
+                        h: &mut Harness<der_model::emt::DerEmt>,
+                        t: f64| {
+        for f in &layouts[k].outputs.fields {
+            let a = d.output(&f.name).expect("an output");
+            let b = match f.kind {
+                dvpp_realcode::info::Kind::Boolean => f64::from(u8::from(h.get_bool(&f.fmu_name))),
+                _ => h.get(&f.fmu_name),
+            };
+            assert_eq!(
+                a.to_bits(),
+                b.to_bits(),
+                "unit {} output {} at t = {t}: DLL {a}, FMU {b}",
+                k + 1,
+                f.fmu_name
+            );
+        }
+    };
+    for (k, (d, h)) in dlls.iter_mut().zip(&mut fmus).enumerate() {
+        compare_unit(k, d, h, 0.0);
+    }
+    // The operator on both sides.
+    let op_lib = operator();
+    let mut op = op_lib.instance().expect("an operator");
+    op.check_parameters().expect("the operator's defaults");
+    let mut twin = Harness::<operator_model::Operator>::new();
+    assert_eq!(twin.setup_experiment(0.0, None), Status::Ok);
+    assert_eq!(twin.enter_initialization_mode(), Status::Ok);
+    let feed_operator = |op: &mut Inst<'_>,
+                         twin: &mut Harness<operator_model::Operator>,
+                         dlls: &mut [Inst<'static>],
+                         fmus: &mut [Harness<der_model::emt::DerEmt>],
+                         pcc_dll: [f64; 4],
+                         pcc_fmu: [f64; 4]| {
+        for (k, (d, h)) in dlls.iter_mut().zip(fmus.iter_mut()).enumerate() {
+            for n in ["P_avail", "p", "p_set", "q"] {
+                let name = format!("der[{}].{n}", k + 1);
+                op.set_input(&c_name(&name), d.output(n).expect("a DER output"))
+                    .expect("an operator input");
+                twin.set(&name, h.get(n));
+            }
+        }
+        for ((n, a), b) in ["pcc.p", "pcc.q", "pcc.f", "pcc.v"]
+            .iter()
+            .zip(pcc_dll)
+            .zip(pcc_fmu)
+        {
+            op.set_input(&c_name(n), a).expect("an operator input");
+            twin.set(n, b);
+        }
+    };
+    let op_outputs: Vec<(String, String)> = op_lib
+        .info
+        .outputs
+        .iter()
+        .map(|d| {
+            let fmu = d
+                .description
+                .rsplit("(FMU: ")
+                .next()
+                .and_then(|s| s.strip_suffix(')'));
+            (d.name.clone(), fmu.unwrap_or(&d.name).to_string())
+        })
+        .collect();
+    let compare_operator =
+        |op: &mut Inst<'_>, twin: &mut Harness<operator_model::Operator>, t: f64| {
+            for (c, f) in &op_outputs {
+                let (a, b) = (op.output(c).expect("an output"), twin.get(f));
+                assert_eq!(
+                    a.to_bits(),
+                    b.to_bits(),
+                    "operator {f} at t = {t}: DLL {a}, FMU {b}"
+                );
+            }
+        };
+    let (pd, pf) = (pcc(&mut plant_dll), pcc(&mut plant_fmu));
+    feed_operator(&mut op, &mut twin, &mut dlls, &mut fmus, pd, pf);
+    op.initialize(0.0).expect("the operator initializes");
+    assert_eq!(twin.exit_initialization_mode(), Status::Ok);
+    compare_operator(&mut op, &mut twin, 0.0);
+    // The operator's gains into the units.
+    let give_gains = |op: &mut Inst<'_>,
+                      twin: &mut Harness<operator_model::Operator>,
+                      dlls: &mut [Inst<'static>],
+                      fmus: &mut [Harness<der_model::emt::DerEmt>]| {
+        for (k, (d, h)) in dlls.iter_mut().zip(fmus.iter_mut()).enumerate() {
+            for (from, to) in gain_names(k + 1).iter().zip(unit_gains(k + 1)) {
+                d.set_input(&c_name(to), op.output(&c_name(from)).expect("a gain"))
+                    .expect("a gain input");
+                h.set(to, twin.get(from));
+            }
+        }
+    };
+    give_gains(&mut op, &mut twin, &mut dlls, &mut fmus);
+    let steps = 2000;
+    let mut op_steps = 0;
+    let mut p_before = Vec::new();
+    for n in 0..steps {
+        let t = n as f64 * H;
+        for (k, (d, h)) in dlls.iter_mut().zip(&mut fmus).enumerate() {
+            let u = k + 1;
+            for (plant, m, i_dc, lo, hi) in [
+                (
+                    &mut plant_dll,
+                    [d.output("m_a"), d.output("m_b"), d.output("m_c")].map(|x| x.expect("m")),
+                    d.output("i_dc_ref"),
+                    d.output("p_src_min"),
+                    d.output("p_src_max"),
+                ),
+                (
+                    &mut plant_fmu,
+                    [h.get("m_a"), h.get("m_b"), h.get("m_c")],
+                    Ok(h.get("i_dc_ref")),
+                    Ok(h.get("p_src_min")),
+                    Ok(h.get("p_src_max")),
+                ),
+            ] {
+                for (ph, x) in ["a", "b", "c"].iter().zip(m) {
+                    plant.set(&format!("der[{u}].m_{ph}"), x);
+                }
+                plant.set(&format!("der[{u}].i_dc_ref"), i_dc.expect("i_dc_ref"));
+                plant.set(&format!("der[{u}].p_src_min"), lo.expect("p_src_min"));
+                plant.set(&format!("der[{u}].p_src_max"), hi.expect("p_src_max"));
+            }
+        }
+        for (k, (d, h)) in dlls.iter_mut().zip(&mut fmus).enumerate() {
+            let (md, mf) = (
+                measured(&mut plant_dll, k + 1),
+                measured(&mut plant_fmu, k + 1),
+            );
+            assert_eq!(md, mf, "unit {} measured at t = {t}", k + 1);
+            for (name, x) in INPUTS.iter().zip(&md) {
+                d.set_input(name, *x).expect("an input");
+                h.set(name, *x);
+            }
+            d.outputs(t)
+                .unwrap_or_else(|e| panic!("unit {} at {t}: {e}", k + 1));
+            assert_eq!(h.do_step(t, H), Status::Ok, "unit {} at {t}", k + 1);
+            compare_unit(k, d, h, t);
+        }
+        assert_eq!(plant_dll.do_step(t, H), Status::Ok);
+        assert_eq!(plant_fmu.do_step(t, H), Status::Ok);
+        if n == 399 {
+            p_before = dlls.iter_mut().map(|d| d.output("p").expect("p")).collect();
+        }
+        if (n + 1) % OPERATOR_EVERY == 0 {
+            let t_op = (n + 1 - OPERATOR_EVERY) as f64 * H;
+            let (pd, pf) = (pcc(&mut plant_dll), pcc(&mut plant_fmu));
+            feed_operator(&mut op, &mut twin, &mut dlls, &mut fmus, pd, pf);
+            op.outputs(t_op)
+                .unwrap_or_else(|e| panic!("operator at {t_op}: {e}"));
+            assert_eq!(twin.do_step(t_op, op_lib.info.step), Status::Ok);
+            compare_operator(&mut op, &mut twin, t_op);
+            give_gains(&mut op, &mut twin, &mut dlls, &mut fmus);
+            op_steps += 1;
+        }
+    }
+    // The load step moved every unit (the DVPP responded).
+    let after: Vec<f64> = dlls.iter_mut().map(|d| d.output("p").expect("p")).collect();
+    for (k, (a, b)) in p_before.iter().zip(&after).enumerate() {
+        assert!(
+            (b - a).abs() > 1e-4,
+            "unit {} did not respond: p {a} -> {b}",
+            k + 1
+        );
+    }
+    eprintln!(
+        "DVPP: three DER DLL instances and the operator DLL, {steps} steps of 50 µs ({op_steps} operator steps), bit for bit as the FMUs' models; p of the units {p_before:.4?} before the load step, {after:.4?} at {} s",
+        steps as f64 * H
+    );
+}
+
+/// The DER DLL's spec (as its crate states it).
+fn dvpp_der_emt_spec() -> dvpp_realcode::DllSpec {
+    dvpp_realcode::DllSpec {
+        step: H,
+        emt_rms_mode: 1,
+        state_words: der().info.int_states,
+        step_parameter: Some("t_s"),
+        config: "",
+    }
+}

@@ -35,6 +35,9 @@ pub struct Workspace<M: Model> {
     /// The blob this workspace last wrote to (or read from) the state array; empty: none is
     /// valid (the copy is re-read from the array at the next call).
     blob: Vec<u8>,
+    /// The bytes of the host's parameters struct the store's parameters last equalled (empty:
+    /// unknown): a call whose parameters struct is unchanged skips the field-by-field check.
+    params_seen: Vec<u8>,
     records: Arc<Mutex<Vec<LogRecord>>>,
     logger: Logger,
     /// NUL-terminated texts `LastGeneralMessage` and `LastErrorMessage` point at.
@@ -110,6 +113,7 @@ impl<M: Model> Workspace<M> {
             start,
             state: None,
             blob: Vec::with_capacity(info.layout.spec.state_words * 4),
+            params_seen: Vec::with_capacity(info.layout.parameters.size),
             records,
             logger,
             general: Vec::with_capacity(MESSAGE_BYTES + 1),
@@ -412,6 +416,7 @@ impl<M: Model> Workspace<M> {
             self.store = store;
             self.state = Some(state);
             self.blob.extend_from_slice(bytes);
+            self.params_seen.clear();
         }
         Ok(())
     }
@@ -510,6 +515,11 @@ pub unsafe fn initialize<M: Model>(cache: &Cache<M>, info: &Info, inst: *mut Ins
             write_outputs(&store, inst, info)?;
             ws.store = store;
             ws.state = Some(state);
+            ws.params_seen.clear();
+            ws.params_seen.extend_from_slice(std::slice::from_raw_parts(
+                base,
+                info.layout.parameters.size,
+            ));
             ws.save(words, info)
         })
     }
@@ -530,7 +540,10 @@ pub unsafe fn outputs<M: Model>(cache: &Cache<M>, info: &Info, inst: *mut Instan
             ws.blob.clear();
             let mut tuned = false;
             let base = inst.parameters as *const u8;
-            for f in &info.layout.parameters.fields {
+            // SAFETY: the host's parameters struct has the size the model info gives.
+            let host = std::slice::from_raw_parts(base, info.layout.parameters.size);
+            let unchanged = ws.params_seen.as_slice() == host;
+            for f in info.layout.parameters.fields.iter().filter(|_| !unchanged) {
                 let x = read(base, f);
                 let was = store_get(&ws.store, f);
                 if x.to_bits() != was.to_bits() {
@@ -546,6 +559,10 @@ pub unsafe fn outputs<M: Model>(cache: &Cache<M>, info: &Info, inst: *mut Instan
                     store_set(&mut ws.store, f, x);
                     tuned = true;
                 }
+            }
+            if !unchanged {
+                ws.params_seen.clear();
+                ws.params_seen.extend_from_slice(host);
             }
             read_inputs(&mut ws.store, inst, info)?;
             let t = inst.time;

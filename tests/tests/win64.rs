@@ -750,7 +750,7 @@ fn emt_conformance_trajectories_replayed_under_wine_match_the_library() {
 /// host (tests/wine/realcode_host.c, built for linux64 and win64): three instances in one
 /// process replay three of the library's host-conformance trajectories, bit for bit as the
 /// library on both platforms, and each instance's second half again from a snapshot of its
-/// state arrays.
+/// state arrays; and the operator's DLL on both platforms, every output bit for bit.
 #[test]
 fn realcode_dll_under_wine_matches_linux64_and_the_library() {
     use dvpp_controllers::emt::trajectory::{INPUTS, N_OUT, OUTPUTS};
@@ -894,4 +894,84 @@ fn realcode_dll_under_wine_matches_linux64_and_the_library() {
         seen.push(per);
     }
     assert_eq!(seen[0], seen[1], "linux64 and win64 outputs");
+
+    // The operator DLL (1 ms): 1000 steps of a DVPP whose PCC frequency and powers swing, on
+    // both platforms, every output bit for bit; and its second half again from a snapshot.
+    let outputs = [
+        "der_1_mu_p",
+        "der_1_mu_q",
+        "der_2_mu_p",
+        "der_2_mu_q",
+        "der_3_mu_q",
+        "der_3_mu_p_lpf_1",
+        "der_3_mu_p_lpf_2",
+        "ref_df",
+        "ref_dv",
+        "err_df",
+        "err_dv",
+        "check_sum_mu_p",
+        "check_sum_mu_q",
+    ];
+    let mut inputs = Vec::new();
+    for k in 1..=3 {
+        for n in ["P_avail", "p", "p_set", "q"] {
+            inputs.push(format!("der_{k}_{n}"));
+        }
+    }
+    inputs.extend(["pcc_p", "pcc_q", "pcc_f", "pcc_v"].map(String::from));
+    let mut script = format!("input {}\noutput {}\n", inputs.join(" "), outputs.join(" "));
+    for k in 0..=1000usize {
+        let s = dvpp_math::sin(k as f64 * 0.01);
+        let mut x = Vec::new();
+        for d in 0..3 {
+            x.extend([0.5, 0.3 + 0.01 * s * (d + 1) as f64, 0.3, 0.02]);
+        }
+        x.extend([
+            0.9 + 0.03 * s,
+            0.06 + 0.01 * s,
+            1.0 - 1e-3 * s,
+            1.0 + 1e-3 * s,
+        ]);
+        let v: Vec<String> = x.iter().map(|x| hex(*x)).collect();
+        let kind = if k == 0 { "init" } else { "step" };
+        script.push_str(&format!("{kind} {:e} {}\n", k as f64 * 1e-3, v.join(" ")));
+    }
+    let path = work.join("operator.script");
+    std::fs::write(&path, script).expect("write the operator's script");
+    let (so, dll) = (
+        dist.join("linux64").join("dvpp_operator.so"),
+        dist.join("win64").join("dvpp_operator.dll"),
+    );
+    let mut linux = Command::new(&native);
+    linux.arg(&so).arg(&path);
+    let mut windows = Command::new(&masters.wine);
+    masters.environment(&mut windows);
+    windows
+        .arg(&exe)
+        .arg(windows_path(&dll))
+        .arg(windows_path(&path));
+    let mut runs = Vec::new();
+    for (mut cmd, platform) in [(linux, "linux64"), (windows, "win64 under wine")] {
+        let what = format!("the operator's real-code DLL ({platform})");
+        let stdout = master_output(&mut cmd, &what);
+        assert!(stdout.contains("snapshot 0 ok"), "{what}: {stdout}");
+        let rows: Vec<String> = stdout
+            .lines()
+            .filter(|l| l.starts_with("0 "))
+            .map(String::from)
+            .collect();
+        assert_eq!(rows.len(), 1001, "{what}: a row per call");
+        runs.push(rows);
+    }
+    assert_eq!(
+        runs[0], runs[1],
+        "the operator DLL: linux64 and win64 outputs"
+    );
+    // The response moved (ref_df, the 8th output, is not constant).
+    let ref_df: std::collections::BTreeSet<&str> = runs[0]
+        .iter()
+        .filter_map(|r| r.split_whitespace().nth(2 + 7))
+        .collect();
+    assert!(ref_df.len() > 100, "the operator's ref_df hardly moved");
+    say("real-code operator DLL: 1000 steps, linux64 and win64 under wine bit for bit, snapshot restored");
 }

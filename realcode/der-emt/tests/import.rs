@@ -1025,3 +1025,68 @@ fn dvpp_der_emt_spec() -> dvpp_realcode::DllSpec {
         config: "",
     }
 }
+
+/// Instances on two threads at once (as a multi-core real-time host runs them): each
+/// trajectory bit for bit as the library; and `Model_Initialize` called again (a host holding
+/// the model at its initial conditions until a release time) starts from the latest measured
+/// operating point, as a fresh instance initialized there.
+#[test]
+fn instances_on_two_threads_and_repeated_initialization() {
+    let ts = trajectories();
+    std::thread::scope(|scope| {
+        let handles: Vec<_> = ["weak_gfm_a", "stiff_gfl"]
+            .iter()
+            .map(|case| {
+                let t = ts.iter().find(|t| t.case == *case).expect("the case");
+                scope.spawn(move || {
+                    let mut i = der_instance(t);
+                    let s = slots(&i);
+                    i.set_inputs(&s.inputs, &t.init_inputs);
+                    i.set_inputs(&s.gains, &gains(t));
+                    i.initialize(t.init_t).expect("initialize");
+                    let init = read(&mut i, &s);
+                    let steps: Vec<[f64; N_OUT]> = t
+                        .steps
+                        .iter()
+                        .map(|st| {
+                            i.set_inputs(&s.inputs, &st.inputs);
+                            i.outputs(st.t).expect("a step");
+                            read(&mut i, &s)
+                        })
+                        .collect();
+                    t.compare(&init, &steps)
+                        .unwrap_or_else(|m| panic!("{case} on its thread: {m}"));
+                })
+            })
+            .collect();
+        for h in handles {
+            h.join().expect("a thread");
+        }
+    });
+    // Initialized at the trajectory's first measurement, then again at its 100th: as a fresh
+    // instance initialized at the 100th, call for call.
+    let t = ts
+        .iter()
+        .find(|t| t.case == "stiff_gfm_b")
+        .expect("the case");
+    let mut held = der_instance(t);
+    let mut fresh = der_instance(t);
+    let s = slots(&held);
+    held.set_inputs(&s.inputs, &t.init_inputs);
+    held.set_inputs(&s.gains, &gains(t));
+    held.initialize(t.init_t).expect("initialize");
+    let at = &t.steps[100];
+    for i in [&mut held, &mut fresh] {
+        i.set_inputs(&s.inputs, &at.inputs);
+        i.set_inputs(&s.gains, &gains(t));
+        i.initialize(t.init_t).expect("initialize again");
+    }
+    assert_eq!(read(&mut held, &s), read(&mut fresh, &s));
+    for st in &t.steps[101..300] {
+        for i in [&mut held, &mut fresh] {
+            i.set_inputs(&s.inputs, &st.inputs);
+            i.outputs(st.t).expect("a step");
+        }
+        assert_eq!(read(&mut held, &s), read(&mut fresh, &s), "at {}", st.t);
+    }
+}

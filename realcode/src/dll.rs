@@ -516,10 +516,12 @@ pub unsafe fn initialize<M: Model>(cache: &Cache<M>, info: &Info, inst: *mut Ins
             ws.store = store;
             ws.state = Some(state);
             ws.params_seen.clear();
-            ws.params_seen.extend_from_slice(std::slice::from_raw_parts(
-                base,
-                info.layout.parameters.size,
-            ));
+            if !base.is_null() {
+                ws.params_seen.extend_from_slice(std::slice::from_raw_parts(
+                    base,
+                    info.layout.parameters.size,
+                ));
+            }
             ws.save(words, info)
         })
     }
@@ -540,8 +542,16 @@ pub unsafe fn outputs<M: Model>(cache: &Cache<M>, info: &Info, inst: *mut Instan
             ws.blob.clear();
             let mut tuned = false;
             let base = inst.parameters as *const u8;
-            // SAFETY: the host's parameters struct has the size the model info gives.
-            let host = std::slice::from_raw_parts(base, info.layout.parameters.size);
+            if base.is_null() && info.layout.parameters.size > 0 {
+                return Err("the instance has no parameters struct (Parameters is null)".into());
+            }
+            // The host's parameters struct as bytes (padding included: a change there only
+            // costs the field-by-field check).
+            let host: &[u8] = if base.is_null() {
+                &[]
+            } else {
+                std::slice::from_raw_parts(base, info.layout.parameters.size)
+            };
             let unchanged = ws.params_seen.as_slice() == host;
             for f in info.layout.parameters.fields.iter().filter(|_| !unchanged) {
                 let x = read(base, f);

@@ -157,3 +157,36 @@ pub fn c_layout(fields: impl IntoIterator<Item = (DataType, i32)>) -> (Vec<usize
     }
     (offsets, at.next_multiple_of(align))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn c_layout_aligns_each_scalar_and_pads_the_struct() {
+        // int32, real64, int32: 0, 8, 16; size 24 (padded to 8).
+        assert_eq!(
+            c_layout([(INT32, 1), (REAL64, 1), (INT32, 1)]),
+            (vec![0, 8, 16], 24)
+        );
+        // Reals only: dense.
+        assert_eq!(c_layout([(REAL64, 1), (REAL64, 1)]), (vec![0, 8], 16));
+        // A width-3 uint8 array, then an int16: 0, 4; size 6.
+        assert_eq!(c_layout([(UINT8, 3), (INT16, 1)]), (vec![0, 4], 6));
+    }
+
+    #[test]
+    fn the_structs_have_the_standards_layout_on_64_bit_targets() {
+        use std::mem::{offset_of, size_of};
+        assert_eq!(size_of::<Signal>(), 32);
+        assert_eq!(size_of::<Parameter>(), 64);
+        assert_eq!(offset_of!(Parameter, default_value), 40);
+        assert_eq!(offset_of!(ModelInfo, model_name), 8);
+        assert_eq!(offset_of!(ModelInfo, fixed_step_base_sample_time), 88);
+        assert_eq!(offset_of!(ModelInfo, emt_rms_mode), 96);
+        assert_eq!(offset_of!(ModelInfo, input_ports_info), 104);
+        assert_eq!(offset_of!(Instance, time), 24);
+        assert_eq!(offset_of!(Instance, last_error_message), 40);
+        assert_eq!(offset_of!(Instance, double_states), 72);
+    }
+}

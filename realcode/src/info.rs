@@ -336,3 +336,18 @@ fn described(f: &Field) -> String {
         format!("{} (FMU: {})", f.description, f.fmu_name)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::c_name;
+
+    #[test]
+    fn fmu_names_become_c_identifiers() {
+        assert_eq!(c_name("adpf.p.lpf[1].tau"), "adpf_p_lpf_1_tau");
+        assert_eq!(c_name("mu_p_lpf[8]"), "mu_p_lpf_8");
+        assert_eq!(c_name("limit.current"), "limit_current");
+        assert_eq!(c_name("Tdes.H"), "Tdes_H");
+        assert_eq!(c_name("der[3].mu_p_lpf[2]"), "der_3_mu_p_lpf_2");
+        assert_eq!(c_name("1x"), "_1x");
+    }
+}

@@ -32,6 +32,19 @@ fn cargo_once(args: &'static [&'static str]) {
     done.push(args);
 }
 
+/// The real-code DLLs and their headers (`dist/realcode/`, written by `cargo xtask bundle`):
+/// beside `DVPP_DIST` when that is set, else bundled here (`cargo xtask bundle realcode`).
+pub fn realcode_dist() -> PathBuf {
+    if let Some(d) = std::env::var_os("DVPP_DIST") {
+        let beside = PathBuf::from(d).with_file_name("realcode");
+        if beside.is_dir() {
+            return beside;
+        }
+    }
+    cargo_once(&["xtask", "bundle", "realcode"]);
+    root().join("dist").join("realcode")
+}
+
 /// The directory with the default FMUs. `cargo xtask test` bundles them and names the
 /// directory in `DVPP_DIST`; without it, `dist/default` of the workspace, bundled here first
 /// (`cargo xtask bundle`, the same FMUs and scenarios) so that `cargo test` works on a fresh

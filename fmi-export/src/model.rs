@@ -400,6 +400,21 @@ impl<'a> Context<'a> {
         }
     }
 
+    /// A context for a host other than the FMI layer (the IEEE/Cigré real-code DLLs of
+    /// `dvpp-realcode`): messages go to `logger`; `tuned` as [`Context::tuned`] reports it.
+    pub fn for_host(logger: Option<&'a Logger>, tuned: bool) -> Self {
+        Context {
+            logger,
+            status: Status::Ok,
+            tuned,
+        }
+    }
+
+    /// The worst status a message of this call gave (a warning: [`Status::Warning`]).
+    pub fn status(&self) -> Status {
+        self.status
+    }
+
     /// In `do_step`: a parameter was set since the model initialized or last stepped (between
     /// steps only tunable ones can be), so the model re-reads its tunable parameters; otherwise
     /// they hold the values the running state was built or last retuned with.

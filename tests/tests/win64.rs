@@ -745,3 +745,233 @@ fn emt_conformance_trajectories_replayed_under_wine_match_the_library() {
         }
     }
 }
+
+/// The real-code DLL of the EMT DER controller (dist/realcode/, docs/realcode.md) in a C import
+/// host (tests/wine/realcode_host.c, built for linux64 and win64): three instances in one
+/// process replay three of the library's host-conformance trajectories, bit for bit as the
+/// library on both platforms, and each instance's second half again from a snapshot of its
+/// state arrays; and the operator's DLL on both platforms, every output bit for bit.
+#[test]
+fn realcode_dll_under_wine_matches_linux64_and_the_library() {
+    use dvpp_controllers::emt::trajectory::{INPUTS, N_OUT, OUTPUTS};
+    use dvpp_controllers::emt::ParamValue;
+    use dvpp_e2e::conformance::trajectories;
+    let _one = WINE.lock().unwrap_or_else(|e| e.into_inner());
+    let work = Path::new(env!("CARGO_TARGET_TMPDIR")).join("win64 realcode");
+    let _ = std::fs::remove_dir_all(&work);
+    std::fs::create_dir_all(&work).expect("create the work directory");
+    let dist = dvpp_e2e::realcode_dist();
+    let (so, dll) = (
+        dist.join("linux64").join("dvpp_der_emt.so"),
+        dist.join("win64").join("dvpp_der_emt.dll"),
+    );
+    assert!(so.is_file(), "{}: not bundled", so.display());
+    if !dll.is_file() {
+        skip(&format!(
+            "{}: not bundled (no win64 cross toolchain when it was bundled)",
+            dll.display()
+        ));
+        return;
+    }
+    let Some(masters) = Masters::build(&work) else {
+        return;
+    };
+    // The host for both platforms, beside the win64 master (and its bcryptprimitives.dll).
+    let bin = masters
+        .exe
+        .parent()
+        .expect("the masters' directory")
+        .to_path_buf();
+    let (native, exe) = (bin.join("realcode_host"), bin.join("realcode_host.exe"));
+    let src = root().join("tests").join("wine").join("realcode_host.c");
+    let include = format!("-I{}", dist.join("include").display());
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    compile(
+        &cc,
+        std::slice::from_ref(&src),
+        &[&include, "-ldl"],
+        &native,
+    );
+    compile(MINGW, &[src], &[&include], &exe);
+    // The C names of the DLL (FMU names with `_` for every other character).
+    let c_name = |n: &str| -> String {
+        let mut out = String::new();
+        for ch in n.chars() {
+            let ch = if ch.is_ascii_alphanumeric() { ch } else { '_' };
+            if !(ch == '_' && out.ends_with('_')) {
+                out.push(ch);
+            }
+        }
+        out.trim_end_matches('_').to_string()
+    };
+    let hex = |x: f64| format!("{:016x}", x.to_bits());
+    let cases = ["stiff_gfm_a", "weak_gfm_b", "weak_gfl"];
+    let all = trajectories();
+    let chosen: Vec<_> = cases
+        .iter()
+        .map(|c| &all.iter().find(|(_, t)| t.case == *c).expect("the case").1)
+        .collect();
+    let mut scripts = Vec::new();
+    for t in &chosen {
+        let mut s = String::new();
+        for (name, v) in &t.params {
+            let x = match v {
+                ParamValue::Real(x) => *x,
+                ParamValue::Integer(k) => f64::from(*k),
+                ParamValue::Boolean(b) => f64::from(u8::from(*b)),
+            };
+            s.push_str(&format!("param {} {}\n", c_name(name), hex(x)));
+        }
+        let gains: Vec<String> = ["mu_p", "mu_q"]
+            .into_iter()
+            .map(String::from)
+            .chain((1..=8).map(|k| format!("mu_p_lpf_{k}")))
+            .collect();
+        let mut g = vec![t.gains.mu_p, t.gains.mu_q];
+        g.extend(t.gains.mu_p_lpf);
+        s.push_str(&format!("input {} {}\n", INPUTS.join(" "), gains.join(" ")));
+        let outs: Vec<String> = OUTPUTS.iter().map(|n| c_name(n)).collect();
+        s.push_str(&format!("output {}\n", outs.join(" ")));
+        let line = |kind: &str, time: f64, x: &[f64]| {
+            let v: Vec<String> = x.iter().chain(&g).map(|x| hex(*x)).collect();
+            format!("{kind} {time:e} {}\n", v.join(" "))
+        };
+        s.push_str(&line("init", t.init_t, &t.init_inputs));
+        for st in &t.steps {
+            assert_eq!(st.h, 50e-6, "{}: the DLL's fixed step", t.case);
+            s.push_str(&line("step", st.t, &st.inputs));
+        }
+        let path = work.join(format!("{}.script", t.case));
+        std::fs::write(&path, s).expect("write the script");
+        scripts.push(path);
+    }
+    let mut linux = Command::new(&native);
+    linux.arg(&so).args(&scripts);
+    let mut windows = Command::new(&masters.wine);
+    masters.environment(&mut windows);
+    windows
+        .arg(&exe)
+        .arg(windows_path(&dll))
+        .args(scripts.iter().map(|p| windows_path(p)));
+    let mut seen = Vec::new();
+    for (mut cmd, platform) in [(linux, "linux64"), (windows, "win64 under wine")] {
+        let what = format!("the real-code DLL ({platform})");
+        let started = Instant::now();
+        let stdout = master_output(&mut cmd, &what);
+        let mut per: Vec<Vec<[f64; N_OUT]>> = vec![Vec::new(); chosen.len()];
+        for l in stdout.lines() {
+            let w: Vec<&str> = l.split_whitespace().collect();
+            if w.first() == Some(&"snapshot") {
+                assert_eq!(w.get(2), Some(&"ok"), "{what}: {l}");
+                continue;
+            }
+            if w.len() != N_OUT + 2 {
+                continue;
+            }
+            let i: usize = w[0].parse().expect("an instance");
+            let mut row = [0.0; N_OUT];
+            for (o, h) in row.iter_mut().zip(&w[2..]) {
+                *o = f64::from_bits(u64::from_str_radix(h, 16).expect("16 hex digits"));
+            }
+            per[i].push(row);
+        }
+        assert_eq!(
+            stdout.matches("snapshot").count(),
+            chosen.len(),
+            "{what}: a snapshot line per instance"
+        );
+        for (t, rows) in chosen.iter().zip(&per) {
+            assert_eq!(rows.len(), t.steps.len() + 1, "{what}: {}", t.case);
+            if let Err(m) = t.compare(&rows[0], &rows[1..]) {
+                panic!("{} through the real-code DLL ({platform}): {m}", t.case);
+            }
+        }
+        say(&format!(
+            "real-code DLL, {platform}: {} in one process, bit for bit as the library, snapshots restored ({:.1} s)",
+            cases.join(", "),
+            started.elapsed().as_secs_f64()
+        ));
+        seen.push(per);
+    }
+    assert_eq!(seen[0], seen[1], "linux64 and win64 outputs");
+
+    // The operator DLL (1 ms): 1000 steps of a DVPP whose PCC frequency and powers swing, on
+    // both platforms, every output bit for bit; and its second half again from a snapshot.
+    let outputs = [
+        "der_1_mu_p",
+        "der_1_mu_q",
+        "der_2_mu_p",
+        "der_2_mu_q",
+        "der_3_mu_q",
+        "der_3_mu_p_lpf_1",
+        "der_3_mu_p_lpf_2",
+        "ref_df",
+        "ref_dv",
+        "err_df",
+        "err_dv",
+        "check_sum_mu_p",
+        "check_sum_mu_q",
+    ];
+    let mut inputs = Vec::new();
+    for k in 1..=3 {
+        for n in ["P_avail", "p", "p_set", "q"] {
+            inputs.push(format!("der_{k}_{n}"));
+        }
+    }
+    inputs.extend(["pcc_p", "pcc_q", "pcc_f", "pcc_v"].map(String::from));
+    let mut script = format!("input {}\noutput {}\n", inputs.join(" "), outputs.join(" "));
+    for k in 0..=1000usize {
+        let s = dvpp_math::sin(k as f64 * 0.01);
+        let mut x = Vec::new();
+        for d in 0..3 {
+            x.extend([0.5, 0.3 + 0.01 * s * (d + 1) as f64, 0.3, 0.02]);
+        }
+        x.extend([
+            0.9 + 0.03 * s,
+            0.06 + 0.01 * s,
+            1.0 - 1e-3 * s,
+            1.0 + 1e-3 * s,
+        ]);
+        let v: Vec<String> = x.iter().map(|x| hex(*x)).collect();
+        let kind = if k == 0 { "init" } else { "step" };
+        script.push_str(&format!("{kind} {:e} {}\n", k as f64 * 1e-3, v.join(" ")));
+    }
+    let path = work.join("operator.script");
+    std::fs::write(&path, script).expect("write the operator's script");
+    let (so, dll) = (
+        dist.join("linux64").join("dvpp_operator.so"),
+        dist.join("win64").join("dvpp_operator.dll"),
+    );
+    let mut linux = Command::new(&native);
+    linux.arg(&so).arg(&path);
+    let mut windows = Command::new(&masters.wine);
+    masters.environment(&mut windows);
+    windows
+        .arg(&exe)
+        .arg(windows_path(&dll))
+        .arg(windows_path(&path));
+    let mut runs = Vec::new();
+    for (mut cmd, platform) in [(linux, "linux64"), (windows, "win64 under wine")] {
+        let what = format!("the operator's real-code DLL ({platform})");
+        let stdout = master_output(&mut cmd, &what);
+        assert!(stdout.contains("snapshot 0 ok"), "{what}: {stdout}");
+        let rows: Vec<String> = stdout
+            .lines()
+            .filter(|l| l.starts_with("0 "))
+            .map(String::from)
+            .collect();
+        assert_eq!(rows.len(), 1001, "{what}: a row per call");
+        runs.push(rows);
+    }
+    assert_eq!(
+        runs[0], runs[1],
+        "the operator DLL: linux64 and win64 outputs"
+    );
+    // The response moved (ref_df, the 8th output, is not constant).
+    let ref_df: std::collections::BTreeSet<&str> = runs[0]
+        .iter()
+        .filter_map(|r| r.split_whitespace().nth(2 + 7))
+        .collect();
+    assert!(ref_df.len() > 100, "the operator's ref_df hardly moved");
+    say("real-code operator DLL: 1000 steps, linux64 and win64 under wine bit for bit, snapshot restored");
+}

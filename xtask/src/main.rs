@@ -8,6 +8,7 @@ mod docs;
 mod federation;
 mod fuzz;
 mod hinf;
+mod realcode;
 mod win64;
 
 use dvpp_studies::scenario;
@@ -75,7 +76,9 @@ tasks:
                   and dist/variants/<id>-<variant>.fmu; with no ID also every shipped scenario
                   (studies/scenarios/*.toml) as dist/<scenario>/ with <scenario>.ssp; each FMU has
                   binaries/linux64 and, where the x86_64-pc-windows-gnu target and mingw-w64 are
-                  installed (and DVPP_WIN64 is not 0), binaries/win64
+                  installed (and DVPP_WIN64 is not 0), binaries/win64; with no ID, or the ID
+                  `realcode`, also the IEEE/Cigre real-code DLLs (realcode/) into dist/realcode/:
+                  linux64/*.so, win64/*.dll, include/*.h, params/*.params (docs/realcode.md)
   bundle --scenario PATH
                   bundle the scenario file PATH into dist/<its name>/
   cosim SYSTEM.ssp [--stop T] [--step H] [--algorithm jacobi|gauss-seidel|iterative]
@@ -304,6 +307,20 @@ fn bundle_one(
 /// Build and bundle the default FMUs (all, or those whose ids are in `only`) into
 /// `dist/default/` and their variants into `dist/variants/`; returns the default FMUs' paths.
 fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
+    // `realcode`: the real-code DLLs (with no ID: after the FMUs).
+    if only.iter().any(|id| id == "realcode") {
+        realcode::bundle()?;
+        let rest: Vec<String> = only
+            .iter()
+            .filter(|id| *id != "realcode")
+            .cloned()
+            .collect();
+        return if rest.is_empty() {
+            Ok(Vec::new())
+        } else {
+            bundle(&rest)
+        };
+    }
     if let Some(unknown) = only
         .iter()
         .find(|id| !FMUS.iter().any(|f| f.id == id.as_str()))
@@ -355,6 +372,7 @@ fn bundle(only: &[String]) -> Result<Vec<PathBuf>> {
         for path in shipped_scenarios()? {
             bundle_scenario(&path)?;
         }
+        realcode::bundle()?;
     }
     Ok(written)
 }

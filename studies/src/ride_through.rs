@@ -7,8 +7,10 @@
 //! and `vq.tau` = 2 s on every unit (docs/emt.md §9: 0.5 s is not stable below SCR 3).
 //!
 //! What is measured, per run:
-//! - *rides through*: the run completes (no unit stops with an error) and every unit's
-//!   frequency is within [`SYNC_HZ`] of the grid's over the last [`TAIL`] s (synchronism kept);
+//! - *rides through*: the run completes (no unit stops with an error), no unit's frame slips a
+//!   pole against the grid (its angle against the grid's, `∫2π(f - f_grid)dt` from the event
+//!   on, stays within ±π: [`slip`](Row::slip)), and every unit's frequency is within
+//!   [`SYNC_HZ`] of the grid's over the last [`TAIL`] s (synchronism kept);
 //! - the largest phase current of any unit, converter side, over its `I_max` (1.2 pu);
 //! - the DVPP's active and reactive current while the event lasts (dips and faults: mean of
 //!   `Σp/v`, `Σq/v` from 50 ms after the event to its clearing, pu of `S_dvpp`);
@@ -179,6 +181,9 @@ pub struct Row {
     pub rides_through: bool,
     /// The largest unit's frequency offset from the grid's over the last `TAIL` s, Hz.
     pub sync_hz: f64,
+    /// The largest excursion of a unit's angle against the grid's from the event on (rad): a
+    /// frame that slips a pole passes π.
+    pub slip: f64,
     pub i_peak: f64,
     pub i_active: f64,
     pub i_reactive: f64,
@@ -286,6 +291,7 @@ fn measure(job: Job, table: Result<Table, String>) -> Row {
         job,
         rides_through: false,
         sync_hz: f64::NAN,
+        slip: f64::NAN,
         i_peak: f64::NAN,
         i_active: f64::NAN,
         i_reactive: f64::NAN,
@@ -361,7 +367,21 @@ fn measure(job: Job, table: Result<Table, String>) -> Row {
             .fold(0.0_f64, |m, x| m.max(x.abs()))
             .max(1e-12);
         row.energy_residual = residual.abs() / scale;
-        row.rides_through = row.sync_hz <= SYNC_HZ;
+        let start = at(&time, T_EVENT);
+        row.slip = f_units
+            .iter()
+            .map(|f| {
+                let mut angle = 0.0_f64;
+                let mut largest = 0.0_f64;
+                for k in start + 1..n {
+                    let dt = time[k] - time[k - 1];
+                    angle += 2.0 * std::f64::consts::PI * (f[k] - f_grid[k]) * dt;
+                    largest = largest.max(angle.abs());
+                }
+                largest
+            })
+            .fold(0.0, f64::max);
+        row.rides_through = row.sync_hz <= SYNC_HZ && row.slip < std::f64::consts::PI;
         let every = at(&time, 1e-3).max(1);
         row.traces = Traces {
             t: time.iter().step_by(every).copied().collect(),
@@ -467,6 +487,10 @@ pub fn table(rows: &[Row]) -> String {
         let verdict = match (&r.error, r.rides_through) {
             (Some(e), _) => format!("no: {}", stopped(e)),
             (None, true) => "yes".into(),
+            (None, false) if r.slip >= std::f64::consts::PI => format!(
+                "no: slipped (angle {:.1} rad from the grid's), {:.2} Hz from it at the end",
+                r.slip, r.sync_hz
+            ),
             (None, false) => format!("no: {:.2} Hz from the grid at the end", r.sync_hz),
         };
         let currents = if r.job.event.holds_voltage_down() && r.error.is_none() {
@@ -496,17 +520,18 @@ pub fn table(rows: &[Row]) -> String {
 
 fn write_csv(path: &Path, rows: &[Row]) -> Result<(), String> {
     let mut text = String::from(
-        "event,control,scr,rides_through,sync_Hz,i_peak_over_i_max,i_active_pu,i_reactive_pu,recovery_s,energy_residual,error\n",
+        "event,control,scr,rides_through,sync_Hz,slip_rad,i_peak_over_i_max,i_active_pu,i_reactive_pu,recovery_s,energy_residual,error\n",
     );
     for r in rows {
         let _ = writeln!(
             text,
-            "{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{}",
             csv_field(&r.job.event.name()),
             csv_field(r.job.control.name()),
             r.job.scr,
             r.rides_through,
             r.sync_hz,
+            r.slip,
             r.i_peak,
             r.i_active,
             r.i_reactive,

@@ -92,12 +92,15 @@ const REFERENCE_TAU: f64 = 1e-3;
 /// SCR 1.5 to 500 (5 ms is not at 0 pu on SCR 1.5, 3 ms not at SCR 3).
 const CAPACITOR_TAU: f64 = 0.01;
 
-/// Grid-following fault ride-through: time constant (s) of the voltage magnitude the dead band
-/// reads. The MV voltage through [`REFERENCE_TAU`] carries the ringing of the capacitor's
-/// resonance at a voltage step (±0.1 pu for about 50 ms after a dip's end on SCR 1.5): read
-/// directly, it took the unit in and out of the ride-through at every half period, freezing the
-/// p-f model's frequency and the v-q droop at values of the ringing (after a 0.5 pu dip on
-/// SCR 1.5 the unit stayed in it at 0.88 pu), and a 0.08 pu dip's first swing crossed the band.
+/// Grid-following fault ride-through: time constant (s) of the voltage magnitude whose
+/// deviation enters the ride-through and sets the k-factor's injection (it leaves on the
+/// voltage through [`REFERENCE_TAU`], within the hysteresis). That voltage carries the ringing
+/// of the capacitor's resonance at a voltage step (±0.1 pu for about 50 ms after a dip's end on
+/// SCR 1.5): read alone, it took the unit in and out of the ride-through at every half period,
+/// freezing the p-f model's frequency and the v-q droop at values of the ringing (with the
+/// capacitor current through [`CAPACITOR_TAU`], the generic unit stayed in it at 0.88 pu after a
+/// 0.5 pu dip on SCR 1.5), and a 0.08 pu dip's first swing there crossed the band (3 and 4 ms
+/// still did).
 const FRT_DETECT_TAU: f64 = 0.005;
 
 /// Grid-following: time constant (s) of the lag through which the p-f reference model reads
@@ -886,16 +889,18 @@ impl EmtUnit {
                 // within I_max.
                 let u_mv = self.vg_lag.norm();
                 self.u_frt += -dvpp_math::expm1(-h / FRT_DETECT_TAU) * (u_mv - self.u_frt);
-                let dev = self.v_pre - self.u_frt;
-                let band = if self.frt {
-                    FRT_BAND - FRT_HYSTERESIS
+                let dev = self.v_pre - u_mv;
+                // Entering on the voltage through `FRT_DETECT_TAU` (not on the first swing of the
+                // capacitor's ringing), leaving on the voltage itself (within the hysteresis).
+                let frt = if self.frt {
+                    dev.abs() > FRT_BAND - FRT_HYSTERESIS
                 } else {
-                    FRT_BAND
+                    (self.v_pre - self.u_frt).abs() > FRT_BAND
                 };
-                let frt = dev.abs() > band;
                 self.frt = frt;
+                let dev_f = self.v_pre - self.u_frt;
                 let beyond = if frt {
-                    dev - FRT_BAND * dev.signum()
+                    dev_f - FRT_BAND * dev_f.signum()
                 } else {
                     0.0
                 };

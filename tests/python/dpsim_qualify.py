@@ -25,6 +25,13 @@ SCR 3 on the unit's rating (X/R 10), every event at 1 s, every run to 3.5 s at 5
   on the PCC voltage, the plant's meter: kp 60, ki 240) within the tunnel around T_pf's response
   to the measured power change.
 
+The unit's dc link and primary source are the plant's (``DcLink``: fmu-emt-plant/src/dc.rs in
+Python, C_dc 0.096 s, G_dc 0.05 pu, the scenario's tau_dc, the source within the unit's
+[p_src_min, p_src_max]) beside DPsim's circuit: the host feeds the FMU its v_dc, scales the
+converter's voltage by it and charges the link with the converter's power over each step (the
+trapezoidal mean of the imposed samples times the converter current, as DPsim integrates).
+Without it (v_dc = 1, an unlimited source) a unit can deliver beyond its available power.
+
 Host cost: the loop makes one call per FMI function per step on preallocated ctypes arrays
 (fmpy's raw functions, no per-call list conversion), writes the inputs through a numpy view of
 those arrays, precomputes the source's samples, and records the raw solution (converter and grid
@@ -274,12 +281,47 @@ def source_samples(e0, test, n):
     return np.ascontiguousarray((V_R * (x[:, None] * np.exp(1j * W_NOM * t)[:, None] * ABC).real)[:, :, None])
 
 
+class DcLink:
+    """The plant's dc link and primary source (fmu-emt-plant/src/dc.rs, its defaults C_dc 0.096 s,
+    G_dc 0.05 pu and the scenario's tau_dc): stored energy ``w`` = C_dc v_dc²/2 and the source
+    current ``i_src`` lagging the unit's command i_dc_ref by tau_dc within its power range
+    [p_src_min, p_src_max]; the converter draws ``e_ac`` over each step (pu·s on the rating)."""
+
+    V_FLOOR = 0.05
+
+    def __init__(self, tau, p_conv, c=0.096, g=0.05):
+        self.c, self.g, self.tau = c, g, tau
+        self.i_src, self.w = p_conv + g, 0.5 * c
+
+    def v(self):
+        return math.sqrt(2.0 * max(self.w, 0.0) / self.c)
+
+    def _charge(self, i0, i_ref, t):
+        return i_ref * t - (i0 - i_ref) * self.tau * math.expm1(-t / self.tau)
+
+    def step(self, i_ref, e_ac, h, lo_p, hi_p):
+        v_range = max(self.v(), self.V_FLOOR)
+        lo, hi = lo_p / v_range, max(lo_p, hi_p) / v_range
+        i0 = min(max(self.i_src, lo), hi)
+        bound = hi if i_ref > hi else lo if i_ref < lo else None
+        t_b = self.tau * math.log((i0 - i_ref) / (bound - i_ref)) if bound is not None else math.inf
+        if t_b < h:
+            charge, i1 = self._charge(i0, i_ref, t_b) + bound * (h - t_b), bound
+        else:
+            charge, i1 = self._charge(i0, i_ref, h), i_ref + (i0 - i_ref) * math.exp(-h / self.tau)
+        v0 = self.v()
+        v1 = math.sqrt(2.0 * max(self.w + v0 * charge - self.g * v0 * v0 * h - e_ac, 0.0) / self.c)
+        self.w += 0.5 * (v0 + v1) * charge - self.g * h * 0.5 * (v0 * v0 + v1 * v1) - e_ac
+        self.i_src = i1
+        return self.w > 0.0
+
+
 class Stepper:
     """The FMU's three calls per step (fmi2SetReal, fmi2DoStep, fmi2GetReal) through fmpy's raw
     ctypes functions on preallocated arrays: ``u`` (numpy view) the inputs, ``y`` the outputs
     m_a, m_b, m_c, df."""
 
-    OUT = ("m_a", "m_b", "m_c", "df")
+    OUT = ("m_a", "m_b", "m_c", "df", "i_dc_ref", "p_src_min", "p_src_max")
 
     def __init__(self, der):
         f = der.fmu._functions
@@ -288,13 +330,13 @@ class Stepper:
         self.vr_in = (ctypes.c_uint * 10)(*der.vr_in)
         self.x_in = (ctypes.c_double * 10)()
         self.u = np.ctypeslib.as_array(self.x_in)
-        self.vr_out = (ctypes.c_uint * 4)(*[der.vr(n) for n in self.OUT])
-        self.x_out = (ctypes.c_double * 4)()
+        self.vr_out = (ctypes.c_uint * len(self.OUT))(*[der.vr(n) for n in self.OUT])
+        self.x_out = (ctypes.c_double * len(self.OUT))()
         self.y = np.ctypeslib.as_array(self.x_out)
         self.get()
 
     def get(self):
-        return self.get_real(self.c, self.vr_out, 4, self.x_out)
+        return self.get_real(self.c, self.vr_out, len(self.OUT), self.x_out)
 
     def step(self, t):
         """One step from t; the FMI status (0 OK, 1 warning, above: stopped)."""
@@ -326,8 +368,12 @@ def run(test, subject, control, t_end=T_END, profile=False):
     st = Stepper(der)
     volts = info["vdc_ratio"] / 2.0 * V_R
     scale = np.array([1.0 / V_R] * 3 + [-1.0 / conv.i_r] * 6)
-    u, y = st.u, st.y
+    u, y, x_out = st.u, st.y, st.x_out
     u[9] = 1.0
+    with open(os.path.join(ROOT, "studies", "scenarios", f"{system}.toml"), "rb") as fh:
+        import tomllib
+
+        tau_dc = tomllib.load(fh)["emt"]["plant"]["units"][0]["tau_dc"]
     rec_u, rec_v, rec_df = np.empty((n + 1, 10)), np.empty((n + 1, 3)), np.empty(n + 1)
     v_cap, i_f, i_g, v_pcc, e_ref, v_ref = conv.v_cap, conv.i_f, conv.i_g, circuit.v_pcc, circuit.e_ref, conv.v_ref
     sim = circuit.sim
@@ -341,6 +387,9 @@ def run(test, subject, control, t_end=T_END, profile=False):
     measure()
     rec_u[0], rec_v[0], rec_df[0] = u, v_pcc.get()[:, 0], y[3]
     last = y[:3] * volts
+    # The converter's power (pu on the rating) at the solution: its imposed sample times i_f.
+    p_last = float(conv.v_ref.get()[:, 0] @ u[3:6]) / V_R * (2.0 / 3.0)
+    dc = DcLink(tau_dc, p_last)
     k_event, k_clear = round(T_EVENT / H), round(test.end() / H)
     fault, breaker = circuit.fault, circuit.breaker
     fault_on, breaker_on = False, breaker is not None
@@ -366,8 +415,9 @@ def run(test, subject, control, t_end=T_END, profile=False):
             fault_on = fault.open_at_zero()
         if breaker_on and k + 1 >= k_open:
             breaker_on = breaker.open_at_zero()
-        now = y[:3] * volts
-        v_ref.set((0.5 * (last + now)).reshape(3, 1))
+        now = y[:3] * (volts * u[9])
+        sample = 0.5 * (last + now)
+        v_ref.set(sample.reshape(3, 1))
         last = now
         e_ref.set(e[k + 1])
         if profile:
@@ -376,6 +426,12 @@ def run(test, subject, control, t_end=T_END, profile=False):
         if profile:
             t3 = clock()
         measure()
+        p_now = float(sample @ u[3:6]) * (2.0 / 3.0) / V_R
+        if not dc.step(x_out[4], 0.5 * (p_last + p_now) * H, H, x_out[5], x_out[6]):
+            trip, end = ((k + 1) * H, "the dc link is discharged (DPsim host)"), k
+            break
+        p_last = p_now
+        u[9] = dc.v()
         rec_u[k + 1] = u
         rec_v[k + 1] = v_pcc.get()[:, 0]
         rec_df[k + 1] = y[3]
@@ -691,7 +747,7 @@ def profile_report(rec):
     parts = rec["parts"] / n * 1e6
     return (f"{n} steps, {rec['wall'] / n * 1e6:.1f} µs a step (profiled): FMU set/doStep/get {parts[0]:.1f} µs, "
             f"host events and source inputs {parts[1]:.1f} µs, DPsim's next() {parts[2]:.1f} µs, "
-            f"measurements and record {parts[3]:.1f} µs")
+            f"measurements, dc link and record {parts[3]:.1f} µs")
 
 
 if __name__ == "__main__":

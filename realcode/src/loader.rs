@@ -394,7 +394,7 @@ impl Inst<'_> {
         Ok(())
     }
 
-    /// Set the inputs at `offsets` (from [`Inst::input_offsets`]): the per-step path.
+    /// Set the inputs at `slots` (from [`Inst::slots`]) to `xs`: the per-step path.
     pub fn set_inputs(&mut self, slots: &[(ffi::DataType, usize)], xs: &[f64]) {
         for (&(t, at), &x) in slots.iter().zip(xs) {
             self.put(0, t, at, x);

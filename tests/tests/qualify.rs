@@ -27,19 +27,12 @@ const OPEN: &[(&str, &str, &str)] = &[
     ("rocof5down", "DVPP", "B"),
     // The DVPP at I_max through -5 Hz/s (the ride-through study's OPEN_A at SCR 3).
     ("rocof5down", "DVPP", "A"),
-    // A grid-following unit alone at +5 Hz/s (docs/emt.md §9).
+    // A grid-following unit alone at +5 Hz/s (docs/emt.md §9): wind and PV driven to zero
+    // active current, the BESS to absorbing it (a negative conductance at the capacitor's
+    // resonance on SCR 3).
     ("rocof5up", "wind", "GFL"),
     ("rocof5up", "PV", "GFL"),
-    // The BESS grid-following alone at SCR 3 is not steady before any event.
-    ("jump25up", "BESS", "GFL"),
-    ("jump25down", "BESS", "GFL"),
     ("rocof5up", "BESS", "GFL"),
-    ("dip5", "BESS", "GFL"),
-    ("dip1", "BESS", "GFL"),
-    ("slg", "BESS", "GFL"),
-    ("ll", "BESS", "GFL"),
-    ("scrstep", "BESS", "GFL"),
-    ("damping", "BESS", "GFL"),
 ];
 
 /// The workspace root the bundled systems are under (`DVPP_DIST` is `ROOT/dist/default`).

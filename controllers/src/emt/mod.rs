@@ -78,6 +78,31 @@ const HINF_REENTRY_TAU: f64 = 0.1;
 /// outer-loop quantity, as the phasor DER's references are.
 const REFERENCE_TAU: f64 = 1e-3;
 
+/// Grid-following: time constant (s) of the capacitor voltage the converter-side reference's
+/// capacitor current `jω C_f v_c` is computed from. Fed forward from `v_c` through a lag `τ`,
+/// the capacitor current leaves the grid an admittance `jω C_f τs/(τs + 1)` beside the filter
+/// capacitor, whose real part at the resonance of `C_f` with the transformer's and the grid's
+/// inductance (dq: about 145, 200 and 300 Hz at SCR 1.5, 3 and 10) is a negative conductance of
+/// `ω C_f ω_r τ/(1 + ω_r² τ²)`: 0.046 pu at SCR 3 through [`REFERENCE_TAU`] (1 ms). The unit's
+/// own active current `p/|v|` is a positive conductance `p/v²` there, which hid it at the
+/// generic unit's 0.5 pu; a unit near zero active power (case study I's battery at 0.17 pu of
+/// its rating) oscillated at that resonance from the start (measured 0.3-0.55 pu of power at
+/// SCR 3, 1.5 and 0 pu; docs/emt.md, grid-following on weak grids). Through 10 ms the
+/// conductance is 0.1 of that and the resonance keeps the grid's damping: stable from 0 pu on
+/// SCR 1.5 to 500 (5 ms is not at 0 pu on SCR 1.5, 3 ms not at SCR 3).
+const CAPACITOR_TAU: f64 = 0.01;
+
+/// Grid-following fault ride-through: time constant (s) of the voltage magnitude whose
+/// deviation enters the ride-through and sets the k-factor's injection (it leaves on the
+/// voltage through [`REFERENCE_TAU`], within the hysteresis). That voltage carries the ringing
+/// of the capacitor's resonance at a voltage step (±0.1 pu for about 50 ms after a dip's end on
+/// SCR 1.5): read alone, it took the unit in and out of the ride-through at every half period,
+/// freezing the p-f model's frequency and the v-q droop at values of the ringing (with the
+/// capacitor current through [`CAPACITOR_TAU`], the generic unit stayed in it at 0.88 pu after a
+/// 0.5 pu dip on SCR 1.5), and a 0.08 pu dip's first swing there crossed the band (3 and 4 ms
+/// still did).
+const FRT_DETECT_TAU: f64 = 0.005;
+
 /// Grid-following: time constant (s) of the lag through which the p-f reference model reads
 /// the PLL's frequency. The PLL's frequency `k_p e + k_i ∫e` passes the angle of the unit's own
 /// voltage at the gain `k_p` up to hundreds of Hz, and the model's inertia `2H s/(τ_pll s + 1)²`
@@ -278,11 +303,14 @@ pub struct EmtUnit {
     dv_lag: f64,
     /// Grid-following: through `REFERENCE_TAU` (dq, PLL frame), the MV voltage with the
     /// transformer's `L_t di_g/dt` (the PLL's input and the fault ride-through's voltage), its
-    /// phasor estimate `v_c - (R_t + jX_t) i_g` (the current reference's magnitude) and the
-    /// capacitor voltage.
+    /// phasor estimate `v_c - (R_t + jX_t) i_g` (the current reference's magnitude); the
+    /// capacitor voltage through `CAPACITOR_TAU` (the reference's capacitor current).
     vg_lag: Dq,
     vg_phasor: Dq,
     vc_lag: Dq,
+    /// Grid-following: the MV voltage's magnitude through `FRT_DETECT_TAU`, which the fault
+    /// ride-through's dead band reads.
+    u_frt: f64,
     /// Grid-following: the PLL's frequency deviation through `FREQUENCY_TAU` (pu), which the
     /// p-f reference model reads.
     df_lag: f64,
@@ -456,6 +484,7 @@ impl EmtUnit {
             vg_lag: vg,
             vg_phasor: vg,
             vc_lag: fm.v_c,
+            u_frt: vg.norm(),
             df_lag: 0.0,
             limited: false,
             v_pre: vg.norm(),
@@ -925,7 +954,8 @@ impl EmtUnit {
                 self.vg_prev = vg;
                 self.vg_lag = self.vg_lag + (v_mv - self.vg_lag) * k;
                 self.vg_phasor = self.vg_phasor + (vg - self.vg_phasor) * k;
-                self.vc_lag = self.vc_lag + (fm.v_c - self.vc_lag) * k;
+                let k_c = -dvpp_math::expm1(-h / CAPACITOR_TAU);
+                self.vc_lag = self.vc_lag + (fm.v_c - self.vc_lag) * k_c;
                 // The active reference within what the primary source can take: a unit without
                 // storage (`[0, P_avail]`) cannot absorb more than its dc link's losses, and the
                 // p-f model's inertia and droop ask it to when the frequency rises (+5 Hz/s: the
@@ -944,16 +974,19 @@ impl EmtUnit {
                 // active current `p/|v|` as before; the reactive-first limit below keeps the sum
                 // within I_max.
                 let u_mv = self.vg_lag.norm();
+                self.u_frt += -dvpp_math::expm1(-h / FRT_DETECT_TAU) * (u_mv - self.u_frt);
                 let dev = self.v_pre - u_mv;
-                let band = if self.frt {
-                    FRT_BAND - FRT_HYSTERESIS
+                // Entering on the voltage through `FRT_DETECT_TAU` (not on the first swing of the
+                // capacitor's ringing), leaving on the voltage itself (within the hysteresis).
+                let frt = if self.frt {
+                    dev.abs() > FRT_BAND - FRT_HYSTERESIS
                 } else {
-                    FRT_BAND
+                    (self.v_pre - self.u_frt).abs() > FRT_BAND
                 };
-                let frt = dev.abs() > band;
                 self.frt = frt;
+                let dev_f = self.v_pre - self.u_frt;
                 let beyond = if frt {
-                    dev - FRT_BAND * dev.signum()
+                    dev_f - FRT_BAND * dev_f.signum()
                 } else {
                     0.0
                 };

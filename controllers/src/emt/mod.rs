@@ -137,32 +137,6 @@ const PLL_HOLD: f64 = 0.3;
 /// error a limited current reference leaves is read as power by the reference model (the
 /// frame's synchronizing power while limited; docs/emt.md, current limit and ride-through).
 const LIMIT_X: f64 = 0.4;
-/// The same while only the dc link's power budget cuts the current reference: the budget holds
-/// the power, so the term must carry the reference model's whole demand beyond it (through 0.4
-/// pu the frame slipped at -5 Hz/s on SCR 3).
-const LIMIT_X_POWER: f64 = 0.1;
-
-/// Grid-forming, option A: below this MV voltage (pu) while limited, a deep fault: the reference
-/// model reads its set point (the frame runs on at its frequency; reading the synchronizing
-/// term there, the wind unit's frame turned a whole pole in a 0.1 pu dip at SCR 10).
-const FAULT_V: f64 = 0.3;
-
-/// Grid-forming, option A: the weight with which the reference model reads the power drawn
-/// beyond the primary source's range as delivered power; the time constant (s) of the integral
-/// `p_hold` of what the limits add while the source or the dc budget binds, the voltage (pu)
-/// above which it integrates, and the time constant (s) over which it decays once they do not.
-const SOURCE_GAIN: f64 = 1.0;
-const HOLD_TI: f64 = 0.1;
-const HOLD_V_MIN: f64 = 0.8;
-const HOLD_DECAY: f64 = 1.0;
-
-/// Grid-forming, option A: the dc link's power budget (as the phasor DER's `v_dc_min`,
-/// `v_dc_max`, `dc.t_budget`): the ac side may draw the link's energy above `DC_MIN` (charge it
-/// below `DC_MAX`) beyond the primary source at most at the rate energy / `DC_BUDGET`, and below
-/// `DC_MIN` (above `DC_MAX`) it gives (takes) less than the source, so that the link returns.
-const DC_MIN: f64 = 0.8;
-const DC_MAX: f64 = 1.2;
-const DC_BUDGET: f64 = 0.02;
 
 /// Grid-forming, option A: the frame's damping against the grid while limited and in the
 /// recovery after, `D_slip` in units of `Tdes.D` (the reference model's own damping): the
@@ -343,14 +317,6 @@ pub struct EmtUnit {
     i_filt: f64,
     /// Grid-forming, option A: the virtual impedance acted in the last sample.
     tvi_active: bool,
-    /// Grid-forming, option A: the power the converter drew from its dc side beyond the primary
-    /// source's range at the last sample (pu on `S_rated`, positive above `p_src_max`, negative
-    /// below `p_src_min`).
-    source_excess: f64,
-    /// Grid-forming, option A: the integral of the power the limits add to the reference
-    /// model's input (pu on `S_base`), which holds the frame at the grid's frequency while the
-    /// reference model asks for more than a limit lets through.
-    p_hold: f64,
     /// Option B: the grid-side current and the grid-voltage estimate of the previous sample
     /// (dq, pu, its frame), for the voltage the reactive reference model reads.
     i_g_prev: Dq,
@@ -504,8 +470,6 @@ impl EmtUnit {
             recovery: 0.0,
             i_filt: fm.i_f.norm(),
             tvi_active: false,
-            source_excess: 0.0,
-            p_hold: 0.0,
         };
         let mut notices = Vec::new();
         let limit = unit.headroom(m.t);
@@ -667,21 +631,8 @@ impl EmtUnit {
                 // (weighted in as the limit cuts deeper or the impedance grows; the frame's
                 // angle ahead of the grid's shows as `ev_q > 0`), so that the frame keeps
                 // synchronized with the grid while the current, hence the power, is held.
-                let limited = self.hinf.is_none()
-                    && (self.inner.current_limited() || self.inner.power_limited() || w_tvi > 0.0);
-                // The same while the dc budget cuts the reference (through `LIMIT_X_POWER`). And
-                // while the primary source cannot give (or take) what the converter draws, the
-                // reference model reads the difference too, as delivered power; while the
-                // source or the budget binds (the voltage above `HOLD_V_MIN`, not a fault),
-                // also the integral `p_hold` of all these terms, which decays over `HOLD_DECAY`
-                // once they do not: at -5 Hz/s the droop asks 1.33 pu of S_dvpp at -2 Hz, more
-                // than the units' ratings, and a proportional term alone would have to carry it
-                // on an angle beyond π/2.
-                let mut extra = 0.0;
-                if self.hinf.is_none() && self.source_excess != 0.0 {
-                    extra += SOURCE_GAIN * self.source_excess * to_base;
-                }
-                if limited {
+                let limited = self.hinf.is_none() && (self.inner.current_limited() || w_tvi > 0.0);
+                let p_model = if limited {
                     let ev_limit = self.inner.limit_error();
                     let ev_tvi = (Dq { d: self.e, q: 0.0 } - fm.v_c) * w_tvi;
                     let ev = if ev_tvi.norm() > ev_limit.norm() {
@@ -689,21 +640,7 @@ impl EmtUnit {
                     } else {
                         ev_limit
                     };
-                    let x = if self.inner.power_limited() && !self.inner.current_limited() {
-                        LIMIT_X_POWER
-                    } else {
-                        LIMIT_X
-                    };
-                    extra += self.e * ev.q / x * to_base;
-                }
-                let source_bound = self.source_excess != 0.0 || self.inner.power_limited();
-                if extra != 0.0 && source_bound && v > HOLD_V_MIN {
-                    self.p_hold += extra * (h / HOLD_TI);
-                } else if self.p_hold != 0.0 {
-                    self.p_hold *= dvpp_math::exp(-h / HOLD_DECAY);
-                }
-                let p_model = if extra != 0.0 || self.p_hold != 0.0 {
-                    pw + extra + self.p_hold
+                    pw + self.e * ev.q / LIMIT_X * to_base
                 } else {
                     pw
                 };
@@ -731,14 +668,6 @@ impl EmtUnit {
                         .then(|| (fade * SLIP_DAMPING * p.tdes.d * self.slip).clamp(-max, max))
                 } else {
                     None
-                };
-                // In a deep fault (the MV voltage below `FAULT_V`) the power the unit delivers
-                // says nothing of its angle against the grid's: the reference model holds
-                // (reads its set point), so the frame runs on at its frequency, not away.
-                let p_model = if limited && v < FAULT_V {
-                    p_set
-                } else {
-                    p_model
                 };
                 let dp = (p_model - p_set) * to_dvpp;
                 let dp = damping.map_or(dp, |d| dp + d);
@@ -885,21 +814,6 @@ impl EmtUnit {
                         v_ref = v_ref - (fm.i_g + fm.i_g.rot90() * TVI_X_R) * k;
                     }
                     let e = Dq { d: self.e, q: 0.0 };
-                    if self.hinf.is_none() {
-                        // The dc link's budget (as the phasor DER's): the source less the
-                        // link's losses, plus the usable energy above `DC_MIN` (less the room
-                        // below `DC_MAX`) spread over `DC_BUDGET`.
-                        let (c_dc, g_dc) = (p.dc.c_dc, p.dc.g_dc);
-                        let w = 0.5 * c_dc * v_dc * v_dc;
-                        let w_min = 0.5 * c_dc * DC_MIN * DC_MIN;
-                        let w_max = 0.5 * c_dc * DC_MAX * DC_MAX;
-                        let loss = g_dc * v_dc * v_dc;
-                        let range = self.source_range(t);
-                        self.inner.set_power_range(Some([
-                            range[0] - loss - (w_max - w) / DC_BUDGET,
-                            range[1] - loss + (w - w_min) / DC_BUDGET,
-                        ]));
-                    }
                     self.inner.step(&fm, v_ref, e, omega, v_m_max, h)
                 });
                 if self.hinf_limited {
@@ -1045,9 +959,6 @@ impl EmtUnit {
         let drawn = p_conv + g_dc * v_dc * v_dc;
         let now = self.source_range(t);
         let source = drawn > now[1] || drawn < now[0];
-        if self.hinf.is_none() && matches!(self.pf, PfReference::Forming(_)) {
-            self.source_excess = (drawn - now[1]).max(0.0) + (drawn - now[0]).min(0.0);
-        }
 
         // Zero sequence (grid-forming, option A): the dq loops see none. A three-wire converter
         // carries none; once a zero-sequence current shows (a grounded star: the converter's dc

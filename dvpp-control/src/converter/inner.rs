@@ -111,10 +111,6 @@ pub struct InnerLoops {
     limit_error: Dq,
     current_limited: bool,
     modulation_limited: bool,
-    /// Grid-forming: the range of power `v_c · i_ref` the converter may take from its dc side
-    /// (pu on S_rated), set by the caller per sample; `None` for no such bound.
-    power_range: Option<[f64; 2]>,
-    power_limited: bool,
 }
 
 impl InnerLoops {
@@ -130,21 +126,7 @@ impl InnerLoops {
             limit_error: Dq::default(),
             current_limited: false,
             modulation_limited: false,
-            power_range: None,
-            power_limited: false,
         }
-    }
-
-    /// Bound the power `v_c · i_ref` of the grid-forming voltage loop's current reference to
-    /// `range` (pu on S_rated) from the next sample on, or not at all (`None`): the active
-    /// current's part along `v_c` is cut to it, the reactive part kept.
-    pub fn set_power_range(&mut self, range: Option<[f64; 2]>) {
-        self.power_range = range;
-    }
-
-    /// Whether the last sample cut the current reference to the power range.
-    pub fn power_limited(&self) -> bool {
-        self.power_limited
     }
 
     /// The gains in use.
@@ -203,18 +185,11 @@ impl InnerLoops {
         let ff = m.i_g + m.v_c.rot90() * (omega * self.data.c_f);
         let raw = ff + ev * g.kp_v + self.xi_v;
         self.limit_current(raw);
-        let cut = self.limit_power(m.v_c);
-        if !(self.current_limited || self.power_limited) {
+        if !self.current_limited {
             self.xi_v = self.xi_v + ev * (g.ki_v * h);
             self.limit_error = Dq::default();
         } else {
-            let w_i = if self.current_limited {
-                limit_weight(raw, self.i_max)
-            } else {
-                0.0
-            };
-            let w_p = (cut / (LIMIT_BAND * self.i_max)).min(1.0);
-            self.limit_error = (e - m.v_c) * w_i.max(w_p);
+            self.limit_error = forming_limited(raw, e - m.v_c, self.i_max);
         }
         self.current_step(m, self.i_ref, omega, v_m_max, h)
     }
@@ -242,25 +217,6 @@ impl InnerLoops {
         } else {
             raw
         };
-    }
-
-    /// Cut the current reference's part along `v_c` to the power range (after the magnitude
-    /// limit, so both hold); returns how much of the current was cut (pu).
-    fn limit_power(&mut self, v_c: Dq) -> f64 {
-        self.power_limited = false;
-        let Some([lo, hi]) = self.power_range else {
-            return 0.0;
-        };
-        let u = v_c.norm().max(1e-3);
-        let dir = v_c * (1.0 / u);
-        let i_p = dir.p(self.i_ref);
-        let bound = i_p.clamp(lo / u, hi / u);
-        if bound == i_p {
-            return 0.0;
-        }
-        self.power_limited = true;
-        self.i_ref = self.i_ref + dir * (bound - i_p);
-        (i_p - bound).abs()
     }
 
     fn current_step(
@@ -293,11 +249,11 @@ impl InnerLoops {
 }
 
 /// The weight `w = (|raw|/I_max - 1)/LIMIT_BAND` (at most 1) of a grid-forming reference
-/// `raw` beyond `I_max`, by which the limit error takes `ev = E - v_c`: zero where the limit
-/// starts to act and the whole voltage across the virtual impedance once the limit cuts
-/// [`LIMIT_BAND`] of the reference.
-fn limit_weight(raw: Dq, i_max: f64) -> f64 {
-    ((raw.norm() / i_max - 1.0) / LIMIT_BAND).min(1.0)
+/// `raw` beyond `I_max`, times `ev = E - v_c`: zero where the limit starts to act and the whole
+/// voltage across the virtual impedance once the limit cuts [`LIMIT_BAND`] of the reference.
+fn forming_limited(raw: Dq, ev: Dq, i_max: f64) -> Dq {
+    let w = ((raw.norm() / i_max - 1.0) / LIMIT_BAND).min(1.0);
+    ev * w
 }
 
 #[cfg(test)]

@@ -130,6 +130,25 @@ pub struct Instance {
     pub double_states: *mut f64,
 }
 
+impl Instance {
+    /// An instance attached to nothing yet, in EMT mode, as a host sets one up before it
+    /// allocates the structs and state arrays.
+    pub fn unattached() -> Instance {
+        Instance {
+            external_inputs: std::ptr::null_mut(),
+            external_outputs: std::ptr::null_mut(),
+            parameters: std::ptr::null_mut(),
+            time: 0.0,
+            sim_tool_emt_rms_mode: 1,
+            last_error_message: std::ptr::null(),
+            last_general_message: std::ptr::null(),
+            int_states: std::ptr::null_mut(),
+            float_states: std::ptr::null_mut(),
+            double_states: std::ptr::null_mut(),
+        }
+    }
+}
+
 /// The byte size and alignment of a scalar of type `t` in the host's structs (none for a
 /// string pointer, which this project does not use).
 pub fn scalar_size(t: DataType) -> Option<usize> {

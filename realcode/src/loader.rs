@@ -171,18 +171,7 @@ impl Library {
         let words = |bytes: usize| vec![0u64; bytes.div_ceil(8).max(1)];
         let mut inst = Inst {
             lib: self,
-            raw: Box::new(Instance {
-                external_inputs: std::ptr::null_mut(),
-                external_outputs: std::ptr::null_mut(),
-                parameters: std::ptr::null_mut(),
-                time: 0.0,
-                sim_tool_emt_rms_mode: 1,
-                last_error_message: std::ptr::null(),
-                last_general_message: std::ptr::null(),
-                int_states: std::ptr::null_mut(),
-                float_states: std::ptr::null_mut(),
-                double_states: std::ptr::null_mut(),
-            }),
+            raw: Box::new(Instance::unattached()),
             inputs: words(i.sizes[0]),
             outputs: words(i.sizes[1]),
             parameters: words(i.sizes[2]),

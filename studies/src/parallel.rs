@@ -53,6 +53,35 @@ pub fn in_order<J: Send, R: Send>(
         .collect())
 }
 
+/// A study command's `[--only TEXT]` (`command` names it in errors): the jobs whose `name`
+/// contains TEXT (all without it), and TEXT.
+pub fn only<'a, J>(
+    command: &str,
+    args: &'a [String],
+    jobs: Vec<J>,
+    name: impl Fn(&J) -> String,
+) -> Result<(Vec<J>, Option<&'a str>), String> {
+    let only = match args {
+        [] => None,
+        [flag, text] if flag == "--only" => Some(text.as_str()),
+        _ => return Err(format!("{command}: usage: {command} [--only TEXT]")),
+    };
+    let Some(text) = only else {
+        return Ok((jobs, None));
+    };
+    let example = jobs.first().map(&name).unwrap_or_default();
+    let chosen: Vec<J> = jobs
+        .into_iter()
+        .filter(|j| name(j).contains(text))
+        .collect();
+    if chosen.is_empty() {
+        return Err(format!(
+            "{command}: no run's name contains '{text}' (names are like '{example}')"
+        ));
+    }
+    Ok((chosen, only))
+}
+
 #[cfg(test)]
 mod tests {
     /// Results come back in job order whatever the order the workers finish in.

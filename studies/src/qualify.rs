@@ -9,7 +9,7 @@
 //! applies. The grid is the plant's stiff Thevenin source at SCR 3 on the subject's rating
 //! (X/R 10) unless the test says otherwise; every event at [`T_EVENT`], every run to [`T_END`].
 
-use crate::ride_through::Control;
+use crate::ride_through::{at, file_name, set, stopped, Control};
 use dvpp_cosim::master::{self, Options, Record, Scheme};
 use dvpp_cosim::ssp::{self, Value};
 use dvpp_cosim::table::csv_field;
@@ -468,10 +468,6 @@ pub struct Row {
     pub traces: Traces,
 }
 
-fn set(pkg: &mut ssp::Package, component: &str, name: &str, value: Value) -> Result<(), String> {
-    crate::sweep::set_start(pkg, component, name, value)
-}
-
 /// The source's impedance (R, X on `S_base`) for `scr` on `rating`, X/R 10.
 fn impedance(scr: f64, rating: f64) -> (f64, f64) {
     let z = S_BASE / (scr * rating);
@@ -606,10 +602,6 @@ fn record(subject: Subject) -> Record {
         patterns: Some(patterns),
         interval: None,
     }
-}
-
-fn at(t: &[f64], time: f64) -> usize {
-    t.partition_point(|&s| s < time - 1e-9).min(t.len() - 1)
 }
 
 fn mean(x: &[f64]) -> f64 {
@@ -934,29 +926,6 @@ impl Cell {
             if self.pass { "pass" } else { "fail" },
             self.figure
         )
-    }
-}
-
-/// Why a run stopped, short (the unit's own message up to its first `;`).
-fn stopped(error: &str) -> String {
-    let unit = error
-        .split("component '")
-        .nth(1)
-        .and_then(|r| r.split('\'').next());
-    let message = error
-        .rsplit("returned Error: ")
-        .next()
-        .unwrap_or(error)
-        .split(';')
-        .next()
-        .unwrap_or("")
-        .lines()
-        .next()
-        .unwrap_or("")
-        .replace('|', "/");
-    match unit {
-        Some(u) => format!("{u} stopped: {message}"),
-        None => message,
     }
 }
 
@@ -1473,16 +1442,6 @@ pub fn html(rows: &[Row], versions: &str, wall: f64) -> String {
     h
 }
 
-/// A run's name as a file name: letters, digits, `.`, `+` and `-`, the rest `_`.
-fn file_name(name: &str) -> String {
-    name.chars()
-        .map(|c| match c {
-            'a'..='z' | 'A'..='Z' | '0'..='9' | '.' | '+' | '-' => c,
-            _ => '_',
-        })
-        .collect()
-}
-
 /// A run's traces (every 1 ms) as CSV.
 fn write_traces(path: &Path, r: &Row) -> Result<(), String> {
     let tr = &r.traces;
@@ -1519,22 +1478,8 @@ pub const ENVELOPE_FIGURES: [Test; 3] = [
 /// docs/qualification.md; with `--only`, the runs whose name (test, subject, control) contains
 /// TEXT, the matrix printed and each run's traces in `results/qualify/`.
 pub fn qualify(root: &Path, args: &[String]) -> Result<(), String> {
-    let only = match args {
-        [] => None,
-        [flag, text] if flag == "--only" => Some(text.as_str()),
-        _ => return Err("qualify: usage: qualify [--only TEXT]".into()),
-    };
+    let (all, only) = crate::parallel::only("qualify", args, jobs(), Job::name)?;
     let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let mut all = jobs();
-    if let Some(text) = only {
-        all.retain(|j| j.name().contains(text));
-        if all.is_empty() {
-            return Err(format!(
-                "qualify: no run's name contains '{text}' (names are like '{}')",
-                jobs()[0].name()
-            ));
-        }
-    }
     println!(
         "qualify: {} runs of {T_END} s at 50 µs on {workers} threads",
         all.len()

@@ -233,7 +233,12 @@ pub fn jobs() -> Vec<Job> {
     out
 }
 
-fn set(pkg: &mut ssp::Package, component: &str, name: &str, value: Value) -> Result<(), String> {
+pub(crate) fn set(
+    pkg: &mut ssp::Package,
+    component: &str,
+    name: &str,
+    value: Value,
+) -> Result<(), String> {
     crate::sweep::set_start(pkg, component, name, value)
 }
 
@@ -282,7 +287,7 @@ fn record() -> Record {
     }
 }
 
-fn at(t: &[f64], time: f64) -> usize {
+pub(crate) fn at(t: &[f64], time: f64) -> usize {
     t.partition_point(|&s| s < time - 1e-9).min(t.len() - 1)
 }
 
@@ -456,7 +461,7 @@ fn number(x: f64, digits: usize) -> String {
 
 /// Why a run stopped, short: the unit and its own message up to its first `;` (the master's
 /// message names the component and quotes the unit's).
-fn stopped(error: &str) -> String {
+pub(crate) fn stopped(error: &str) -> String {
     let unit = error
         .split("component '")
         .nth(1)
@@ -590,7 +595,7 @@ fn figure(rows: &[Row]) -> Figure {
 }
 
 /// A run's name as a file name: letters, digits, `.`, `+` and `-`, the rest `_`.
-fn file_name(name: &str) -> String {
+pub(crate) fn file_name(name: &str) -> String {
     name.chars()
         .map(|c| match c {
             'a'..='z' | 'A'..='Z' | '0'..='9' | '.' | '+' | '-' => c,
@@ -615,22 +620,8 @@ fn write_table(path: &Path, t: &Table) -> std::io::Result<()> {
 /// SCR) contains TEXT, each run's recorded outputs in `results/ride_through/`, and no figure or
 /// table.
 pub fn ride_through(root: &Path, args: &[String]) -> Result<(), String> {
-    let only = match args {
-        [] => None,
-        [flag, text] if flag == "--only" => Some(text.as_str()),
-        _ => return Err("ride-through: usage: ride-through [--only TEXT]".into()),
-    };
+    let (all, only) = crate::parallel::only("ride-through", args, jobs(), Job::name)?;
     let workers = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let mut all = jobs();
-    if let Some(text) = only {
-        all.retain(|j| j.name().contains(text));
-        if all.is_empty() {
-            return Err(format!(
-                "ride-through: no run's name contains '{text}' (names are like '{}')",
-                jobs()[0].name()
-            ));
-        }
-    }
     println!(
         "ride-through: {} runs of {T_END} s at 50 µs on {workers} threads",
         all.len()

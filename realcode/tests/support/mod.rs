@@ -56,18 +56,7 @@ impl Host {
     pub fn new(l: &Layout) -> Host {
         let words = |b: usize| vec![0u64; b.div_ceil(8).max(1)];
         let mut h = Host {
-            inst: Box::new(Instance {
-                external_inputs: std::ptr::null_mut(),
-                external_outputs: std::ptr::null_mut(),
-                parameters: std::ptr::null_mut(),
-                time: 0.0,
-                sim_tool_emt_rms_mode: 1,
-                last_error_message: std::ptr::null(),
-                last_general_message: std::ptr::null(),
-                int_states: std::ptr::null_mut(),
-                float_states: std::ptr::null_mut(),
-                double_states: std::ptr::null_mut(),
-            }),
+            inst: Box::new(Instance::unattached()),
             inputs: words(l.inputs.size),
             _outputs: words(l.outputs.size),
             parameters: words(l.parameters.size),
